@@ -1,0 +1,67 @@
+"""The rangekit exception family.
+
+Every error a user can cause derives from :class:`RangekitError` and carries the
+exit code the command-line interface returns for it (documented in ``docs/cli.md``).
+Library callers catch :class:`RangekitError`; they never need to look at exit codes.
+
+Examples
+--------
+>>> from rangekit.errors import InputFileError
+>>> err = InputFileError("cannot open 'x.wav': no such file")
+>>> err.exit_code
+3
+"""
+
+from __future__ import annotations
+
+__all__ = [
+    "AudioFormatError",
+    "DetectionError",
+    "IncompatibleInputError",
+    "InputFileError",
+    "InvalidParameterError",
+    "RangekitError",
+]
+
+
+class RangekitError(Exception):
+    """Base class of every error rangekit raises on purpose (exit code 1)."""
+
+    exit_code: int = 1
+
+
+class InvalidParameterError(RangekitError, ValueError):
+    """A parameter value is out of its domain (exit code 2, like a usage error)."""
+
+    exit_code = 2
+
+
+class InputFileError(RangekitError, OSError):
+    """An input file is missing or cannot be read (exit code 3)."""
+
+    exit_code = 3
+
+
+class AudioFormatError(RangekitError, ValueError):
+    """A file is not audio, or is audio in a form rangekit cannot use (exit code 4)."""
+
+    exit_code = 4
+
+
+class IncompatibleInputError(RangekitError, ValueError):
+    """Inputs are valid on their own but do not fit together or with the signal (exit code 5).
+
+    Examples: a sample rate too low to carry the beep, the wrong number of channels or
+    files for the scheme.
+    """
+
+    exit_code = 5
+
+
+class DetectionError(RangekitError):
+    """The signal was not found as expected in the recording (exit code 6).
+
+    Examples: fewer beeps found than devices, burst spacing that does not fit the beep.
+    """
+
+    exit_code = 6

@@ -1,0 +1,141 @@
+"""Reading and writing audio files, with validation and clear errors.
+
+Conventions (``docs/formats.md``): a recording is read as float64 in [-1, 1]; one WAV
+with N channels is N devices (channel i = device i); N mono WAVs are N devices (file i
+= device i). Files may differ in sample rate.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from rangekit.errors import AudioFormatError, IncompatibleInputError, InputFileError
+
+__all__ = ["Channel", "load_devices", "read_audio", "write_audio"]
+
+
+@dataclass(frozen=True)
+class Channel:
+    """One device's recording: samples, sample rate and where they came from."""
+
+    x: np.ndarray
+    fs: float
+    source: str
+
+    @property
+    def duration_s(self) -> float:
+        return len(self.x) / self.fs
+
+
+def _sf():
+    import soundfile  # deferred: keeps `import rangekit` cheap
+
+    return soundfile
+
+
+def read_audio(path: str | os.PathLike) -> tuple[np.ndarray, float]:
+    """Read an audio file as float64 of shape (n_samples, n_channels) and its rate in Hz.
+
+    Raises
+    ------
+    InputFileError
+        The file is missing, a directory, or cannot be read.
+    AudioFormatError
+        The file is not audio that libsndfile can decode, or holds no samples.
+    """
+    p = Path(path)
+    if not p.exists():
+        raise InputFileError(f"cannot open '{p}': no such file")
+    if p.is_dir():
+        raise InputFileError(f"cannot open '{p}': it is a directory")
+    if not os.access(p, os.R_OK):
+        raise InputFileError(f"cannot open '{p}': permission denied")
+    sf = _sf()
+    try:
+        x, fs = sf.read(str(p), dtype="float64", always_2d=True)
+    except sf.LibsndfileError as e:
+        raise AudioFormatError(f"'{p}' is not a readable audio file ({e.error_string})") from e
+    except (RuntimeError, TypeError, ValueError) as e:
+        raise AudioFormatError(f"'{p}' is not a readable audio file ({e})") from e
+    if x.shape[0] == 0:
+        raise AudioFormatError(f"'{p}' holds no audio samples")
+    if not np.all(np.isfinite(x)):
+        raise AudioFormatError(f"'{p}' holds NaN or infinite samples")
+    return x, float(fs)
+
+
+def load_devices(paths: Sequence[str | os.PathLike], *, min_devices: int = 2) -> list[Channel]:
+    """Read the recordings of one exchange: one multichannel file or one mono file per device.
+
+    Parameters
+    ----------
+    paths : sequence of path-like
+        One file with N >= ``min_devices`` channels, or N mono files.
+    min_devices : int
+        Minimum number of devices the scheme needs.
+
+    Returns
+    -------
+    list of Channel
+        Device i's recording at index i.
+    """
+    paths = list(paths)
+    if not paths:
+        raise IncompatibleInputError("no input files given")
+    if len(paths) == 1:
+        x, fs = read_audio(paths[0])
+        if x.shape[1] < min_devices:
+            raise IncompatibleInputError(
+                f"'{paths[0]}' has {x.shape[1]} channel(s) but {min_devices} devices are needed: "
+                "give one WAV with a channel per device, or one mono WAV per device"
+            )
+        return [
+            Channel(np.ascontiguousarray(x[:, i]), fs, f"{paths[0]}#{i}") for i in range(x.shape[1])
+        ]
+    if len(paths) < min_devices:
+        raise IncompatibleInputError(f"{len(paths)} files given but {min_devices} are needed")
+    out = []
+    for p in paths:
+        x, fs = read_audio(p)
+        if x.shape[1] != 1:
+            raise IncompatibleInputError(
+                f"'{p}' has {x.shape[1]} channels: with several files, each must be mono "
+                "(one file per device)"
+            )
+        out.append(Channel(np.ascontiguousarray(x[:, 0]), fs, str(p)))
+    return out
+
+
+def write_audio(
+    path: str | os.PathLike, x: np.ndarray, *, fs: float, subtype: str = "PCM_16"
+) -> None:
+    """Write ``x`` (n_samples,) or (n_samples, n_channels) to ``path`` atomically.
+
+    The file appears complete or not at all: data goes to a temporary file in the same
+    folder that is renamed over ``path`` at the end. Samples beyond [-1, 1] raise rather
+    than clip silently.
+    """
+    x = np.asarray(x, dtype=np.float64)
+    peak = float(np.max(np.abs(x))) if x.size else 0.0
+    if subtype.startswith("PCM") and peak > 1.0:
+        raise AudioFormatError(f"cannot write '{path}': peak {peak:.3f} exceeds full scale 1.0")
+    p = Path(path)
+    if p.parent and not p.parent.exists():
+        raise InputFileError(f"cannot write '{p}': folder '{p.parent}' does not exist")
+    tmp = p.with_name(f".{p.name}.part")
+    sf = _sf()
+    fmt = p.suffix.lstrip(".").upper() or "WAV"
+    try:
+        sf.write(str(tmp), x, int(round(fs)), subtype=subtype, format=fmt)
+        os.replace(tmp, p)
+    except (sf.LibsndfileError, TypeError, ValueError) as e:
+        tmp.unlink(missing_ok=True)
+        raise AudioFormatError(f"cannot write '{p}': {e}") from e
+    except OSError as e:
+        tmp.unlink(missing_ok=True)
+        raise InputFileError(f"cannot write '{p}': {e.strerror or e}") from e

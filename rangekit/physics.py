@@ -1,0 +1,62 @@
+"""Physical constants and conversions between delays and distances.
+
+Examples
+--------
+>>> round(speed_of_sound_m_s(20.0), 2)
+343.29
+>>> round(delay_to_distance_m(0.01, speed_m_s=343.0), 6)
+3.43
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from rangekit.errors import InvalidParameterError
+
+__all__ = [
+    "DEFAULT_TEMP_C",
+    "delay_to_distance_m",
+    "distance_to_delay_s",
+    "speed_of_sound_m_s",
+]
+
+#: Default air temperature in degrees Celsius.
+DEFAULT_TEMP_C = 20.0
+
+
+def speed_of_sound_m_s(temp_c: float = DEFAULT_TEMP_C) -> float:
+    """Speed of sound in dry air.
+
+    Parameters
+    ----------
+    temp_c : float
+        Air temperature in degrees Celsius, within [-60, 60].
+
+    Returns
+    -------
+    float
+        Speed of sound in m/s.
+
+    Notes
+    -----
+    c = 20.05 * sqrt(T + 273.16), with T in degrees Celsius (Kim & Kim 2013, §II-A).
+    """
+    temp_c = float(temp_c)
+    if not math.isfinite(temp_c) or not -60.0 <= temp_c <= 60.0:
+        raise InvalidParameterError(f"temperature {temp_c} C is outside [-60, 60] C")
+    return 20.05 * math.sqrt(temp_c + 273.16)
+
+
+def delay_to_distance_m(delay_s, *, speed_m_s: float):
+    """Distance travelled by sound in ``delay_s`` seconds (scalar or array)."""
+    return np.multiply(delay_s, speed_m_s) if not np.isscalar(delay_s) else delay_s * speed_m_s
+
+
+def distance_to_delay_s(distance_m, *, speed_m_s: float):
+    """Propagation delay in seconds over ``distance_m`` metres (scalar or array)."""
+    if not np.isscalar(distance_m):
+        return np.divide(distance_m, speed_m_s)
+    return distance_m / speed_m_s

@@ -1,0 +1,119 @@
+"""Two-way (BeepBeep) ranging without clock synchronisation, for N devices.
+
+Notes
+-----
+Peng et al. 2007 (BeepBeep), as used by Jiang et al. 2018 §4.3 and Algorithm 1: devices
+play the beep in turn (device 0 first) while all record. Let ``t_i[j]`` be the arrival of
+device j's beep in device i's recording, in seconds of device i's own clock (onset sample
+over its own sample rate). For a pair (a, b),
+
+    D_ab = c / 2 * ((t_a[b] - t_a[a]) - (t_b[b] - t_b[a])) + (s_a + s_b) / 2
+
+where ``s_i`` is device i's speaker-to-microphone distance (its self-distance) and c the
+speed of sound. Play and record start times and every fixed latency cancel; D_ab is the
+mean of the two cross speaker-to-microphone distances. A sample-clock error e (ppm) in a
+recording scales the interval it measures by (1 + e): with intervals of a few tenths of
+a second that is a few millimetres at 50 ppm.
+
+Uncertainty: sigma_D = c / 2 * sqrt(sum of the four onset variances (in s^2)), from each
+onset's 1-sigma.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+import numpy as np
+
+from rangekit import _validate as V
+from rangekit.errors import DetectionError, IncompatibleInputError
+from rangekit.types import Arrivals, Range, RangeResult
+
+__all__ = ["range_beepbeep", "self_distances"]
+
+
+def self_distances(self_distance_m, n_devices: int) -> np.ndarray:
+    """Broadcast one self-distance, or check a list of ``n_devices`` of them (metres)."""
+    s = np.atleast_1d(np.asarray(self_distance_m, dtype=np.float64))
+    if s.ndim != 1 or len(s) not in (1, n_devices):
+        raise IncompatibleInputError(
+            f"{len(s)} self-distances given for {n_devices} devices: give one, or one per device"
+        )
+    for v in s:
+        V.positive("self_distance_m", v, allow_zero=True)
+        if v > 2.0:
+            raise V.InvalidParameterError(f"self_distance_m={v} m is implausibly large (> 2 m)")
+    return np.broadcast_to(s, (n_devices,)).copy()
+
+
+def range_beepbeep(
+    arrivals: Sequence[Arrivals],
+    *,
+    speed_m_s: float,
+    self_distance_m: float | Sequence[float] = 0.0,
+) -> RangeResult:
+    """Distances between every pair of devices from their recordings' beep arrivals.
+
+    Parameters
+    ----------
+    arrivals : sequence of Arrivals
+        ``arrivals[i]`` are the beeps found in device i's recording; it must hold exactly
+        one beep per device, in play order (device 0's beep first).
+    speed_m_s : float
+        Speed of sound in m/s.
+    self_distance_m : float or sequence of float
+        Speaker-to-microphone distance of every device, or of each device.
+
+    Returns
+    -------
+    RangeResult
+        One Range per pair (a < b), ordered (0, 1), (0, 2), ..., (1, 2), ...
+
+    Raises
+    ------
+    DetectionError
+        A recording does not hold one beep per device.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from rangekit.types import Arrivals
+    >>> def arr(onsets):
+    ...     n = len(onsets)
+    ...     z = np.zeros(n)
+    ...     return Arrivals(np.array(onsets), 44100.0, z + 0.1, z + 30, z + 1, np.zeros((n, 4)))
+    >>> # device 1 plays 20000 samples after device 0; the pair is 343 samples of flight apart
+    >>> res = range_beepbeep([arr([1000.0, 21343.0]), arr([5343.0, 25000.0])], speed_m_s=343.0)
+    >>> round(res.ranges[0].distance_m, 4)
+    3.43
+    """
+    n = len(arrivals)
+    if n < 2:
+        raise IncompatibleInputError(f"two-way ranging needs at least 2 devices, got {n}")
+    c = V.positive("speed_m_s", speed_m_s)
+    if not 100.0 <= c <= 2000.0:
+        raise V.InvalidParameterError(f"speed_m_s={c} is outside [100, 2000] m/s")
+    s = self_distances(self_distance_m, n)
+    for i, a in enumerate(arrivals):
+        if len(a) != n:
+            found = "no beep" if len(a) == 0 else f"{len(a)} beep(s)"
+            raise DetectionError(
+                f"device {i}: found {found} but expected {n} (one per device); "
+                "run `rangekit detect` on the file to see what was found"
+            )
+    t = [a.onset_s for a in arrivals]
+    v = [a.sigma_s**2 for a in arrivals]
+    ranges = []
+    for a in range(n):
+        for b in range(a + 1, n):
+            delta = (t[a][b] - t[a][a]) - (t[b][b] - t[b][a])
+            d = 0.5 * c * delta + 0.5 * (s[a] + s[b])
+            sig = 0.5 * c * math.sqrt(v[a][a] + v[a][b] + v[b][a] + v[b][b])
+            flags = []
+            if d < 0:
+                flags.append("negative")
+            if t[a][b] <= t[a][a] or t[b][b] <= t[b][a]:
+                flags.append("order")
+            ranges.append(Range(a, b, float(d), float(sig), tuple(flags)))
+    return RangeResult(tuple(ranges), c, tuple(arrivals))

@@ -1,0 +1,113 @@
+"""From recordings to ranges: the one entry point the CLI and batch processing call."""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Sequence
+
+import numpy as np
+
+from rangekit.detect import DETECTORS
+from rangekit.detect.changepoint import find_bursts, group_bursts
+from rangekit.detect.xcorr import detect_xcorr
+from rangekit.errors import DetectionError, InvalidParameterError
+from rangekit.io.audio import Channel, load_devices
+from rangekit.physics import DEFAULT_TEMP_C, speed_of_sound_m_s
+from rangekit.ranging.beepbeep import range_beepbeep
+from rangekit.signals.beep import Beep, check_beep_fits
+from rangekit.types import Arrivals, RangeResult
+
+__all__ = ["detect_channel", "range_channels", "range_files"]
+
+
+def _spacing_hint(onsets: np.ndarray, *, beep: Beep, fs: float) -> str:
+    """Explain why bursts were found but no beep: their spacing does not fit."""
+    if len(onsets) < 2:
+        return ""
+    d = np.diff(np.sort(onsets))
+    d = d[d > 0.3 * beep.spacing_s * fs]
+    if len(d) == 0:
+        return ""
+    seen = float(np.median(d))
+    want = beep.spacing_s * fs
+    if abs(seen - want) <= 0.25 * beep.burst_s * fs:
+        return ""
+    return (
+        f"; burst spacing does not fit: bursts are {seen:.0f} samples apart but the beep's "
+        f"spacing is {want:.0f} samples ({beep.spacing_s * 1e3:.1f} ms); check --spacing"
+    )
+
+
+def detect_channel(
+    ch: Channel, *, beep: Beep, detector: str = "changepoint", expected: int | None = None
+) -> Arrivals:
+    """Detect the beeps in one device's recording; explain in the error when too few are found."""
+    check_beep_fits(beep, fs=ch.fs, what=f"'{ch.source}'")
+    if detector == "changepoint":
+        cand = find_bursts(ch.x, fs=ch.fs, beep=beep)
+        arr = group_bursts(cand, fs=ch.fs, beep=beep)
+        hint = _spacing_hint(cand.onset, beep=beep, fs=ch.fs)
+    elif detector == "xcorr":
+        arr = detect_xcorr(ch.x, fs=ch.fs, beep=beep, max_beeps=expected)
+        hint = ""
+    else:
+        raise InvalidParameterError(f"detector={detector!r} must be one of {', '.join(DETECTORS)}")
+    if expected is not None and len(arr) < expected:
+        found = "no beep" if len(arr) == 0 else f"{len(arr)} beep(s)"
+        raise DetectionError(
+            f"'{ch.source}': found {found} but expected {expected} (one per device){hint}"
+        )
+    if expected is not None and len(arr) > expected:
+        raise DetectionError(
+            f"'{ch.source}': found {len(arr)} beeps but expected {expected} (one per device); "
+            "is this one exchange? run `rangekit detect` on the file to see them"
+        )
+    return arr
+
+
+def range_channels(
+    channels: Sequence[Channel],
+    *,
+    beep: Beep | None = None,
+    detector: str = "changepoint",
+    temp_c: float = DEFAULT_TEMP_C,
+    speed_m_s: float | None = None,
+    self_distance_m: float | Sequence[float] = 0.0,
+) -> RangeResult:
+    """Two-way ranges between devices from their recordings (device i = channel i).
+
+    Parameters
+    ----------
+    channels : sequence of Channel
+        One recording per device, in play order.
+    beep : Beep, optional
+        The beep that was played (default: the rangekit beep).
+    detector : {"changepoint", "xcorr"}
+        Arrival detector.
+    temp_c : float
+        Air temperature in degrees Celsius (sets the speed of sound).
+    speed_m_s : float, optional
+        Speed of sound; overrides ``temp_c``.
+    self_distance_m : float or sequence of float
+        Speaker-to-microphone distance of the devices, metres.
+    """
+    beep = Beep() if beep is None else beep
+    c = speed_of_sound_m_s(temp_c) if speed_m_s is None else float(speed_m_s)
+    n = len(channels)
+    arrivals = [detect_channel(ch, beep=beep, detector=detector, expected=n) for ch in channels]
+    return range_beepbeep(arrivals, speed_m_s=c, self_distance_m=self_distance_m)
+
+
+def range_files(
+    paths: Sequence[str | os.PathLike],
+    *,
+    scheme: str = "beepbeep",
+    **kw,
+) -> RangeResult:
+    """Two-way ranges from one multichannel WAV or one mono WAV per device.
+
+    Keyword arguments are those of :func:`range_channels`.
+    """
+    if scheme != "beepbeep":
+        raise InvalidParameterError(f"scheme={scheme!r} must be 'beepbeep'")
+    return range_channels(load_devices(paths, min_devices=2), **kw)

@@ -1,0 +1,13 @@
+"""Simulation: rendered recordings with their ground truth."""
+
+from rangekit.sim.recording import Device, SimResult, pair_devices, render_beepbeep
+from rangekit.sim.room import ShoeboxRoom, image_sources
+
+__all__ = [
+    "Device",
+    "ShoeboxRoom",
+    "SimResult",
+    "image_sources",
+    "pair_devices",
+    "render_beepbeep",
+]

@@ -1,0 +1,141 @@
+"""Result types: frozen dataclasses of arrays, with units in field names.
+
+Examples
+--------
+>>> import numpy as np
+>>> a = Arrivals.empty(fs=44100.0, n_bursts=4)
+>>> len(a), a.onset_s.shape
+(0, (0,))
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+__all__ = ["Arrivals", "Range", "RangeResult"]
+
+
+@dataclass(frozen=True)
+class Arrivals:
+    """Beep arrivals detected in one recording channel.
+
+    Attributes
+    ----------
+    onset : ndarray, shape (n,)
+        Arrival of each beep's first burst start, as a float sample index from x[0]
+        (t = 0 at sample 0). Sub-sample.
+    fs : float
+        Sample rate of the recording in Hz.
+    sigma : ndarray, shape (n,)
+        1-sigma uncertainty of each onset, in samples.
+    snr_db : ndarray, shape (n,)
+        Estimated signal-to-noise ratio of each arrival (burst power over the noise
+        power in the full band), in dB.
+    confidence : ndarray, shape (n,)
+        Fraction of the beep's bursts whose timing fits the known burst spacing (0..1).
+    burst_onsets : ndarray, shape (n, n_bursts)
+        Onset of each burst in samples; NaN where a burst was missing or rejected.
+    detector : str
+        Name of the detector that produced the arrivals.
+    """
+
+    onset: np.ndarray
+    fs: float
+    sigma: np.ndarray
+    snr_db: np.ndarray
+    confidence: np.ndarray
+    burst_onsets: np.ndarray
+    detector: str = ""
+
+    def __post_init__(self) -> None:
+        n = len(self.onset)
+        for name in ("sigma", "snr_db", "confidence"):
+            if len(getattr(self, name)) != n:
+                raise ValueError(f"Arrivals.{name} has {len(getattr(self, name))} entries, not {n}")
+        if self.burst_onsets.shape[0] != n:
+            raise ValueError("Arrivals.burst_onsets must have one row per onset")
+
+    @classmethod
+    def empty(cls, *, fs: float, n_bursts: int, detector: str = "") -> Arrivals:
+        """An Arrivals with no entries."""
+        z = np.zeros(0)
+        return cls(z, float(fs), z, z, z, np.zeros((0, n_bursts)), detector)
+
+    def __len__(self) -> int:
+        return len(self.onset)
+
+    @property
+    def onset_s(self) -> np.ndarray:
+        """Onsets in seconds from sample 0."""
+        return self.onset / self.fs
+
+    @property
+    def sigma_s(self) -> np.ndarray:
+        """Onset uncertainties in seconds."""
+        return self.sigma / self.fs
+
+    def take(self, index) -> Arrivals:
+        """A new Arrivals with the entries selected by ``index``."""
+        idx = np.asarray(index)
+        return Arrivals(
+            self.onset[idx],
+            self.fs,
+            self.sigma[idx],
+            self.snr_db[idx],
+            self.confidence[idx],
+            self.burst_onsets[idx],
+            self.detector,
+        )
+
+
+@dataclass(frozen=True)
+class Range:
+    """One distance between devices ``a`` and ``b``.
+
+    Attributes
+    ----------
+    a, b : int
+        Device indices (a < b).
+    distance_m : float
+        Estimated distance in metres.
+    sigma_m : float
+        1-sigma uncertainty in metres, from the detection quality.
+    flags : tuple of str
+        Warnings, e.g. ``"negative"`` for a physically impossible distance.
+    """
+
+    a: int
+    b: int
+    distance_m: float
+    sigma_m: float
+    flags: tuple[str, ...] = ()
+
+    def as_dict(self) -> dict:
+        """Plain-JSON form of the range."""
+        return {
+            "a": self.a,
+            "b": self.b,
+            "distance_m": self.distance_m,
+            "sigma_m": self.sigma_m,
+            "flags": list(self.flags),
+        }
+
+
+@dataclass(frozen=True)
+class RangeResult:
+    """All pairwise ranges of one exchange, with the arrivals they came from."""
+
+    ranges: tuple[Range, ...]
+    speed_m_s: float
+    arrivals: tuple[Arrivals, ...] = field(default_factory=tuple)
+
+    def distance_matrix_m(self) -> np.ndarray:
+        """Symmetric (N, N) matrix of distances; NaN where no range, 0 on the diagonal."""
+        n = len(self.arrivals) if self.arrivals else 1 + max((r.b for r in self.ranges), default=0)
+        d = np.full((n, n), np.nan)
+        np.fill_diagonal(d, 0.0)
+        for r in self.ranges:
+            d[r.a, r.b] = d[r.b, r.a] = r.distance_m
+        return d
