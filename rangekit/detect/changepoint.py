@@ -261,7 +261,7 @@ def detect_changepoint(
     >>> x[1000:1000 + b.duration_samples] = beep_waveform(b)
     >>> x += 1e-3 * np.random.default_rng(0).standard_normal(len(x))
     >>> arr = detect_changepoint(x, fs=b.fs, beep=b)
-    >>> abs(arr.onset[0] - 1000) < 0.1
+    >>> bool(abs(arr.onset[0] - 1000) < 0.1)
     True
     """
     beep = Beep() if beep is None else beep

@@ -83,10 +83,10 @@ def range_beepbeep(
     ...     n = len(onsets)
     ...     z = np.zeros(n)
     ...     return Arrivals(np.array(onsets), 44100.0, z + 0.1, z + 30, z + 1, np.zeros((n, 4)))
-    >>> # device 1 plays 20000 samples after device 0; the pair is 343 samples of flight apart
+    >>> # 343 samples of flight each way at 44.1 kHz: 343 / 44100 s * 343 m/s
     >>> res = range_beepbeep([arr([1000.0, 21343.0]), arr([5343.0, 25000.0])], speed_m_s=343.0)
     >>> round(res.ranges[0].distance_m, 4)
-    3.43
+    2.6678
     """
     n = len(arrivals)
     if n < 2:

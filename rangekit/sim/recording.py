@@ -239,7 +239,7 @@ def render_beepbeep(
             else:
                 pos, gains, _ = image_sources(dj.speaker_m, room)
             rate_j = beep.fs * (1 + dj.clock_ppm * 1e-6)
-            for p, g in zip(pos, gains):
+            for p, g in zip(pos, gains, strict=True):
                 r = float(np.linalg.norm(p - di.mic_m))
                 r = max(r, 1e-3)
                 t0 = play[j] + r / c

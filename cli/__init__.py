@@ -1,0 +1,1 @@
+"""rangekit command-line interface (installed as the ``rangekit_cli`` package)."""

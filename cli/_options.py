@@ -1,0 +1,101 @@
+"""Options shared by several commands, and their conversion to library objects."""
+
+from __future__ import annotations
+
+import functools
+
+import click
+
+FORMATS = ("table", "json", "csv")
+
+
+def beep_options(f):
+    """--freq/--bursts/--spacing/--burst-len/--taper/--beep-fs: the beep that was played."""
+    opts = [
+        click.option("--freq", "f_hz", type=float, default=None, help="Beep frequency in Hz [16000]."),
+        click.option("--bursts", "n_bursts", type=int, default=None, help="Bursts per beep [4]."),
+        click.option(
+            "--spacing", type=int, default=None, help="Samples between burst starts [5000]."
+        ),
+        click.option(
+            "--burst-len", "burst_len", type=int, default=None, help="Samples per burst [441]."
+        ),
+        click.option(
+            "--taper", type=int, default=None, help="Raised-cosine taper samples at each end [22]."
+        ),
+        click.option(
+            "--beep-fs",
+            "beep_fs",
+            type=float,
+            default=None,
+            help="Sample rate the beep is defined at, Hz [44100].",
+        ),
+    ]
+    for o in reversed(opts):
+        f = o(f)
+    return f
+
+
+def make_beep(kw: dict, *, amplitude: float | None = None):
+    """Build a Beep from the options of :func:`beep_options` (popped from ``kw``)."""
+    from rangekit.signals import Beep
+
+    args = {}
+    for key, name in (
+        ("f_hz", "f_hz"),
+        ("n_bursts", "n_bursts"),
+        ("spacing", "spacing"),
+        ("burst_len", "burst_len"),
+        ("taper", "taper"),
+        ("beep_fs", "fs"),
+    ):
+        v = kw.pop(key, None)
+        if v is not None:
+            args[name] = v
+    if amplitude is not None:
+        args["amplitude"] = amplitude
+    return Beep(**args)
+
+
+def format_option(f):
+    return click.option(
+        "--format",
+        "fmt",
+        type=click.Choice(FORMATS),
+        default="table",
+        show_default=True,
+        help="Output format.",
+    )(f)
+
+
+def debug_option(f):
+    """--debug on every command (also accepted before the command name)."""
+
+    @click.option("--debug", is_flag=True, help="Show tracebacks of errors.")
+    @functools.wraps(f)
+    def wrapper(*args, debug: bool, **kw):
+        if debug:
+            click.get_current_context().find_root().meta["rangekit.debug"] = True
+        return f(*args, **kw)
+
+    return wrapper
+
+
+def float_list(text: str | None, *, name: str) -> list[float] | None:
+    """Parse "0.1" or "0.1,0.12" into floats, with a usage error naming the option."""
+    if text is None:
+        return None
+    try:
+        return [float(t) for t in text.split(",") if t.strip()]
+    except ValueError:
+        raise click.BadParameter(f"{text!r} is not a comma-separated list of numbers", param_hint=name) from None
+
+
+def emit(text: str, output: str | None) -> None:
+    """Write results to ``output`` atomically, or to stdout."""
+    if output is None:
+        click.echo(text, nl=not text.endswith("\n"))
+    else:
+        from rangekit.io.sidecar import write_text_atomic
+
+        write_text_atomic(output, text)

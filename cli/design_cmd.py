@@ -1,0 +1,48 @@
+"""``rangekit design``: probe signals to play."""
+
+from __future__ import annotations
+
+import click
+
+from rangekit_cli._options import beep_options, debug_option, make_beep
+
+
+@click.group("design")
+def design():
+    """Write probe signals as playable WAV files."""
+
+
+@design.command("beep")
+@beep_options
+@click.option("--amplitude", type=float, default=0.9, show_default=True, help="Peak level (0, 1].")
+@click.option(
+    "--fs", "fs", type=float, default=None, help="Sample rate of the file, Hz [the beep's, 44100]."
+)
+@click.option("-o", "--output", type=click.Path(dir_okay=False), required=True, help="WAV file to write.")
+@debug_option
+def design_beep(amplitude, fs, output, **beep_kw):
+    """The rangekit beep as a 16-bit PCM WAV to copy to every phone.
+
+    --fs changes only the file's sample rate: the beep keeps its timing in seconds
+    (spacing and burst lengths count samples at --beep-fs), so `rangekit range` needs no
+    extra option for a 48 kHz copy.
+
+    Tone bursts (16 kHz, 4 bursts, starts 5000 samples apart at 44.1 kHz by default) with
+    raised-cosine tapers. Every parameter can be changed; the same options must then be
+    given to `rangekit range` and `rangekit detect`.
+    """
+    import numpy as np
+
+    from rangekit.io.audio import write_audio
+    from rangekit.signals.beep import beep_continuous, check_beep_fits
+
+    beep = make_beep(beep_kw, amplitude=amplitude)
+    rate = beep.fs if fs is None else fs
+    check_beep_fits(beep, fs=rate, what="--fs")
+    x = beep_continuous(np.arange(int(np.ceil(beep.duration_s * rate))) / rate, beep=beep)
+    write_audio(output, x, fs=rate, subtype="PCM_16")
+    click.echo(
+        f"wrote {output}: {beep.n_bursts} x {beep.f_hz:g} Hz bursts of {beep.burst_s * 1e3:.1f} ms, "
+        f"{beep.spacing_s * 1e3:.1f} ms apart, {beep.duration_s:.3f} s at {rate:g} Hz",
+        err=True,
+    )

@@ -1,0 +1,97 @@
+"""The ``rangekit`` command group; maps library errors to exit codes in one place.
+
+Exit codes (``docs/cli.md``): 0 success; 1 other rangekit error; 2 usage or invalid
+parameter; 3 input file missing or unreadable, or output not writable; 4 not audio;
+5 inputs incompatible (sample rate, channel or file count); 6 detection failure
+(beeps not found, burst spacing does not fit); 70 internal error (a bug); 130 interrupted.
+"""
+
+from __future__ import annotations
+
+import sys
+
+import click
+
+EXIT_INTERNAL = 70
+EXIT_INTERRUPTED = 130
+
+
+class RangekitGroup(click.Group):
+    """A click group whose commands are imported only when used (fast start-up)."""
+
+    _commands = {
+        "range": ("rangekit_cli.range_cmd", "range_cmd"),
+        "detect": ("rangekit_cli.detect_cmd", "detect_cmd"),
+        "design": ("rangekit_cli.design_cmd", "design"),
+        "synth": ("rangekit_cli.synth_cmd", "synth"),
+    }
+
+    def list_commands(self, ctx):
+        return sorted(self._commands)
+
+    def get_command(self, ctx, name):
+        if name not in self._commands:
+            return None
+        import importlib
+
+        mod, attr = self._commands[name]
+        return getattr(importlib.import_module(mod), attr)
+
+    def invoke(self, ctx):
+        from rangekit.errors import RangekitError
+
+        try:
+            return super().invoke(ctx)
+        except RangekitError as e:
+            if ctx.meta.get("rangekit.debug"):
+                raise
+            click.echo(f"rangekit: error: {e}", err=True)
+            ctx.exit(e.exit_code)
+        except (click.exceptions.Exit, click.ClickException, click.Abort):
+            raise
+        except KeyboardInterrupt:
+            click.echo("rangekit: interrupted", err=True)
+            ctx.exit(EXIT_INTERRUPTED)
+        except Exception as e:
+            if ctx.meta.get("rangekit.debug"):
+                raise
+            click.echo(
+                f"rangekit: internal error: {type(e).__name__}: {e} (rerun with --debug for the "
+                "traceback, and please report it)",
+                err=True,
+            )
+            ctx.exit(EXIT_INTERNAL)
+
+
+def _version() -> str:
+    from rangekit import __version__
+
+    return __version__
+
+
+@click.group(cls=RangekitGroup, context_settings={"help_option_names": ["-h", "--help"]})
+@click.option("--debug", is_flag=True, help="Show tracebacks of errors.")
+@click.version_option(version=None, package_name="rangekit", prog_name="rangekit")
+@click.pass_context
+def cli(ctx: click.Context, debug: bool) -> None:
+    """rangekit: acoustic and ultrasonic ranging from WAV files.
+
+    \b
+    Typical use:
+      rangekit design beep -o beep.wav        # the file to play on every phone
+      rangekit range recording.wav            # distances between the devices
+      rangekit detect recording.wav           # what was detected, per channel
+      rangekit synth beepbeep --distance 2 -o x.wav   # a simulated exchange + truth
+
+    Exit codes are listed in docs/cli.md.
+    """
+    ctx.meta["rangekit.debug"] = debug
+
+
+def main(argv: list[str] | None = None) -> None:
+    """Console-script entry point."""
+    cli.main(args=argv, prog_name="rangekit")
+
+
+if __name__ == "__main__":  # pragma: no cover
+    main(sys.argv[1:])
