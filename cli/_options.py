@@ -12,7 +12,9 @@ FORMATS = ("table", "json", "csv")
 def beep_options(f):
     """--freq/--bursts/--spacing/--burst-len/--taper/--beep-fs: the beep that was played."""
     opts = [
-        click.option("--freq", "f_hz", type=float, default=None, help="Beep frequency in Hz [16000]."),
+        click.option(
+            "--freq", "f_hz", type=float, default=None, help="Beep frequency in Hz [16000]."
+        ),
         click.option("--bursts", "n_bursts", type=int, default=None, help="Bursts per beep [4]."),
         click.option(
             "--spacing", type=int, default=None, help="Samples between burst starts [5000]."
@@ -88,7 +90,9 @@ def float_list(text: str | None, *, name: str) -> list[float] | None:
     try:
         return [float(t) for t in text.split(",") if t.strip()]
     except ValueError:
-        raise click.BadParameter(f"{text!r} is not a comma-separated list of numbers", param_hint=name) from None
+        raise click.BadParameter(
+            f"{text!r} is not a comma-separated list of numbers", param_hint=name
+        ) from None
 
 
 def emit(text: str, output: str | None) -> None:

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import click
-
 from rangekit_cli._options import beep_options, debug_option, make_beep
 
 
@@ -18,7 +17,9 @@ def design():
 @click.option(
     "--fs", "fs", type=float, default=None, help="Sample rate of the file, Hz [the beep's, 44100]."
 )
-@click.option("-o", "--output", type=click.Path(dir_okay=False), required=True, help="WAV file to write.")
+@click.option(
+    "-o", "--output", type=click.Path(dir_okay=False), required=True, help="WAV file to write."
+)
 @debug_option
 def design_beep(amplitude, fs, output, **beep_kw):
     """The rangekit beep as a 16-bit PCM WAV to copy to every phone.
@@ -42,7 +43,8 @@ def design_beep(amplitude, fs, output, **beep_kw):
     x = beep_continuous(np.arange(int(np.ceil(beep.duration_s * rate))) / rate, beep=beep)
     write_audio(output, x, fs=rate, subtype="PCM_16")
     click.echo(
-        f"wrote {output}: {beep.n_bursts} x {beep.f_hz:g} Hz bursts of {beep.burst_s * 1e3:.1f} ms, "
+        f"wrote {output}: {beep.n_bursts} x {beep.f_hz:g} Hz bursts of "
+        f"{beep.burst_s * 1e3:.1f} ms, "
         f"{beep.spacing_s * 1e3:.1f} ms apart, {beep.duration_s:.3f} s at {rate:g} Hz",
         err=True,
     )

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import click
-
 from rangekit_cli._options import beep_options, debug_option, emit, format_option, make_beep
 
 
@@ -18,7 +17,13 @@ from rangekit_cli._options import beep_options, debug_option, emit, format_optio
 )
 @beep_options
 @format_option
-@click.option("-o", "--output", type=click.Path(dir_okay=False), default=None, help="Write here instead of stdout.")
+@click.option(
+    "-o",
+    "--output",
+    type=click.Path(dir_okay=False),
+    default=None,
+    help="Write here instead of stdout.",
+)
 @debug_option
 def detect_cmd(files, detector, fmt, output, **beep_kw):
     """Beep onsets in every channel of every FILE.

@@ -9,6 +9,7 @@ parameter; 3 input file missing or unreadable, or output not writable; 4 not aud
 from __future__ import annotations
 
 import sys
+from typing import ClassVar
 
 import click
 
@@ -19,7 +20,7 @@ EXIT_INTERRUPTED = 130
 class RangekitGroup(click.Group):
     """A click group whose commands are imported only when used (fast start-up)."""
 
-    _commands = {
+    _commands: ClassVar[dict[str, tuple[str, str]]] = {
         "range": ("rangekit_cli.range_cmd", "range_cmd"),
         "detect": ("rangekit_cli.detect_cmd", "detect_cmd"),
         "design": ("rangekit_cli.design_cmd", "design"),

@@ -3,8 +3,14 @@
 from __future__ import annotations
 
 import click
-
-from rangekit_cli._options import beep_options, debug_option, emit, float_list, format_option, make_beep
+from rangekit_cli._options import (
+    beep_options,
+    debug_option,
+    emit,
+    float_list,
+    format_option,
+    make_beep,
+)
 
 
 @click.command("range")
@@ -25,7 +31,12 @@ from rangekit_cli._options import beep_options, debug_option, emit, float_list, 
     help="Speaker-to-microphone distance in metres: one for all devices, or one per device.",
 )
 @click.option(
-    "--temperature", "temp_c", type=float, default=20.0, show_default=True, help="Air temperature, C."
+    "--temperature",
+    "temp_c",
+    type=float,
+    default=20.0,
+    show_default=True,
+    help="Air temperature, C.",
 )
 @click.option(
     "--speed-of-sound",
@@ -44,7 +55,13 @@ from rangekit_cli._options import beep_options, debug_option, emit, float_list, 
 )
 @beep_options
 @format_option
-@click.option("-o", "--output", type=click.Path(dir_okay=False), default=None, help="Write here instead of stdout.")
+@click.option(
+    "-o",
+    "--output",
+    type=click.Path(dir_okay=False),
+    default=None,
+    help="Write here instead of stdout.",
+)
 @debug_option
 def range_cmd(files, self_distance, temp_c, speed, detector, fmt, output, **beep_kw):
     """Distances between devices that played the beep in turn.

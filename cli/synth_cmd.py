@@ -5,7 +5,6 @@ from __future__ import annotations
 from pathlib import Path
 
 import click
-
 from rangekit_cli._options import beep_options, debug_option, float_list, make_beep
 
 
@@ -30,20 +29,51 @@ def _parse_point(text: str, name: str) -> list[float]:
     metavar="X,Y,Z",
     help="A device position in metres (repeat once per device; replaces --distance).",
 )
-@click.option("--self-distance", type=float, default=0.1, show_default=True, help="Speaker-to-mic distance, m.")
-@click.option("--snr-db", type=float, default=20.0, show_default=True, help="SNR of the weakest direct beep, dB.")
+@click.option(
+    "--self-distance",
+    type=float,
+    default=0.1,
+    show_default=True,
+    help="Speaker-to-mic distance, m.",
+)
+@click.option(
+    "--snr-db",
+    type=float,
+    default=20.0,
+    show_default=True,
+    help="SNR of the weakest direct beep, dB.",
+)
 @click.option("--no-noise", is_flag=True, help="Render without noise.")
 @click.option("--noise", type=click.Choice(["white", "pink"]), default="white", show_default=True)
-@click.option("--room", default=None, metavar="LX,LY,LZ", help="Shoebox room size in metres (reflections).")
-@click.option("--absorption", type=float, default=0.3, show_default=True, help="Wall energy absorption.")
-@click.option("--order", type=int, default=1, show_default=True, help="Image-source reflection order.")
-@click.option("--temperature", "temp_c", type=float, default=20.0, show_default=True, help="Air temperature, C.")
-@click.option("--ppm", default=None, metavar="E[,E...]", help="Sample-clock error per device, ppm [0].")
-@click.option("--fs", type=float, default=44100.0, show_default=True, help="Recording sample rate, Hz.")
+@click.option(
+    "--room", default=None, metavar="LX,LY,LZ", help="Shoebox room size in metres (reflections)."
+)
+@click.option(
+    "--absorption", type=float, default=0.3, show_default=True, help="Wall energy absorption."
+)
+@click.option(
+    "--order", type=int, default=1, show_default=True, help="Image-source reflection order."
+)
+@click.option(
+    "--temperature",
+    "temp_c",
+    type=float,
+    default=20.0,
+    show_default=True,
+    help="Air temperature, C.",
+)
+@click.option(
+    "--ppm", default=None, metavar="E[,E...]", help="Sample-clock error per device, ppm [0]."
+)
+@click.option(
+    "--fs", type=float, default=44100.0, show_default=True, help="Recording sample rate, Hz."
+)
 @click.option("--mono", is_flag=True, help="Write one mono WAV per device (NAME_devI.wav).")
 @click.option("--seed", type=int, default=None, help="Random seed (recording starts, noise).")
 @beep_options
-@click.option("-o", "--output", type=click.Path(dir_okay=False), required=True, help="WAV file to write.")
+@click.option(
+    "-o", "--output", type=click.Path(dir_okay=False), required=True, help="WAV file to write."
+)
 @debug_option
 def synth_beepbeep(
     distance, positions, self_distance, snr_db, no_noise, noise, room, absorption, order,
@@ -126,4 +156,6 @@ def synth_beepbeep(
         truth["files"] = [out.name]
     write_json(out.with_suffix(".json"), truth)
     pairs = ", ".join(f"{p['a']}-{p['b']}: {p['distance_m']:.4f} m" for p in truth["pairs"])
-    click.echo(f"wrote {', '.join(truth['files'])} and {out.with_suffix('.json').name} ({pairs})", err=True)
+    click.echo(
+        f"wrote {', '.join(truth['files'])} and {out.with_suffix('.json').name} ({pairs})", err=True
+    )

@@ -31,7 +31,9 @@ def _write(name: str, sim, *, seed: int, note: str, mono: bool = False) -> None:
             files.append(f.name)
     else:
         n = min(len(x) for x in sim.recordings)
-        write_audio(HERE / f"{name}.wav", np.stack([x[:n] for x in sim.recordings], 1), fs=sim.fs[0])
+        write_audio(
+            HERE / f"{name}.wav", np.stack([x[:n] for x in sim.recordings], 1), fs=sim.fs[0]
+        )
         files = [f"{name}.wav"]
     truth["files"] = files
     write_json(HERE / f"{name}.json", truth)
@@ -45,9 +47,7 @@ def main() -> None:
     # The README default: two phones 2.5 m apart, SNR 20 dB, free field.
     seed = 1
     rng = np.random.default_rng(seed)
-    devs = pair_devices(
-        2.5, self_distance_m=0.1, rec_start_s=(0.03, 0.08), clock_ppm=(12.0, -7.0)
-    )
+    devs = pair_devices(2.5, self_distance_m=0.1, rec_start_s=(0.03, 0.08), clock_ppm=(12.0, -7.0))
     sim = render_beepbeep(devs, snr_db=20, rng=rng)
     _write("beepbeep_2p5m", sim, seed=seed, note="README default: 2 devices, 2.5 m, SNR 20 dB")
 
@@ -69,10 +69,14 @@ def main() -> None:
     up = np.array([0.0, 0.0, 0.05])
     devs = [
         Device(p - up, p + up, rec_start_s=0.02 * i, clock_ppm=ppm, fs=fs)
-        for i, (p, ppm, fs) in enumerate(zip(pts, (0.0, 20.0, -15.0), (44100.0, 48000.0, 44100.0), strict=True))
+        for i, (p, ppm, fs) in enumerate(
+            zip(pts, (0.0, 20.0, -15.0), (44100.0, 48000.0, 44100.0), strict=True)
+        )
     ]
     sim = render_beepbeep(devs, snr_db=20, rng=rng)
-    _write("beepbeep_3dev", sim, seed=seed, note="3 devices, mono files, device 1 at 48 kHz", mono=True)
+    _write(
+        "beepbeep_3dev", sim, seed=seed, note="3 devices, mono files, device 1 at 48 kHz", mono=True
+    )
 
 
 if __name__ == "__main__":

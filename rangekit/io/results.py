@@ -34,7 +34,14 @@ def _fmt(v) -> str:
     return str(v)
 
 
-def format_rows(rows: Sequence[dict], fields: Sequence[str], fmt: str, *, meta: dict | None = None, key: str = "rows") -> str:
+def format_rows(
+    rows: Sequence[dict],
+    fields: Sequence[str],
+    fmt: str,
+    *,
+    meta: dict | None = None,
+    key: str = "rows",
+) -> str:
     """Render dict rows as an aligned table, CSV (header + rows) or one JSON object."""
     if fmt == "json":
         obj = dict(meta or {})
@@ -101,5 +108,8 @@ def format_arrivals(rows: list[dict], fmt: str, *, meta: dict | None = None) -> 
             for r in rows
         ]
     if fmt == "json":
-        rows = [{k: (None if isinstance(v, float) and not np.isfinite(v) else v) for k, v in r.items()} for r in rows]
+        rows = [
+            {k: (None if isinstance(v, float) and not np.isfinite(v) else v) for k, v in r.items()}
+            for r in rows
+        ]
     return format_rows(rows, ARRIVAL_FIELDS, fmt, meta=meta, key="arrivals")

@@ -19,6 +19,24 @@ from rangekit.errors import InvalidParameterError
 FS = 44100.0
 
 
+@pytest.fixture(autouse=True)
+def _always_numba(monkeypatch):
+    """Short inputs normally take the numpy path; these tests exercise the numba kernel."""
+    monkeypatch.setattr(kernels_module, "NUMBA_MIN_SAMPLES", 0)
+
+
+def test_short_inputs_take_the_numpy_path_with_the_same_numbers(monkeypatch):
+    x = _noise_and_tone(5000, 3)
+    f = np.array([15900.0, 16000.0])
+    fast = band_energy(x, fs=FS, f_hz=f, n_win=128, hop=32)
+    monkeypatch.setattr(kernels_module, "NUMBA_MIN_SAMPLES", 10**9)
+    called = []
+    monkeypatch.setattr(kernels_module, "_band_energy_kernel", lambda *a: called.append(1))
+    slow = band_energy(x, fs=FS, f_hz=f, n_win=128, hop=32)
+    assert not called
+    _assert_rel(slow, fast, rtol=1e-12)
+
+
 def _assert_rel(actual: np.ndarray, desired: np.ndarray, rtol: float = 1e-9) -> None:
     """Relative agreement, scaled by the largest value so near-zero frames are fine."""
     assert actual.shape == desired.shape
@@ -102,6 +120,16 @@ def test_non_contiguous_and_list_input():
     _assert_rel(got, _band_energy_reference(x[::3].copy(), fs=FS, f_hz=f, n_win=64, hop=16))
     got_list = band_energy(list(x[:500]), fs=FS, f_hz=f, n_win=64, hop=16)
     _assert_rel(got_list, _band_energy_reference(x[:500], fs=FS, f_hz=f, n_win=64, hop=16))
+
+
+def test_non_finite_samples_propagate():
+    # fastmath is limited to reassoc/contract, so NaN/inf are not assumed away.
+    x = _noise_and_tone(1000, seed=5)
+    x[500] = np.nan
+    e = band_energy(x, fs=FS, f_hz=[16000.0], n_win=128, hop=32)
+    bad = ~np.isfinite(e)
+    frames_with_nan = [m for m in range(e.size) if m * 32 <= 500 < m * 32 + 128]
+    assert np.flatnonzero(bad).tolist() == frames_with_nan
 
 
 def test_tone_energy_value():
@@ -229,7 +257,7 @@ def test_stale_cache_from_other_module_name_falls_back(tmp_path):
     root = src.parents[2]
     env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path))
     call = (
-        "import numpy as np; "
+        "import numpy as np; m.NUMBA_MIN_SAMPLES = 0; "
         "e = m.band_energy(np.ones(300), fs=44100.0, f_hz=[1e3], n_win=128, hop=32); "
         "print(e.shape[0])"
     )

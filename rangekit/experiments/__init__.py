@@ -1,0 +1,1 @@
+"""Experiments: accuracy harnesses and the papers' tables reproduced."""
