@@ -47,6 +47,14 @@ from rangekit_cli._options import (
     help="Speed of sound in m/s (overrides --temperature).",
 )
 @click.option(
+    "--clock-ppm",
+    "clock_ppm",
+    type=float,
+    default=30.0,
+    show_default=True,
+    help="1-sigma sample-clock tolerance per device, ppm (widens sigma_m only).",
+)
+@click.option(
     "--detector",
     type=click.Choice(["changepoint", "xcorr"]),
     default="changepoint",
@@ -63,7 +71,7 @@ from rangekit_cli._options import (
     help="Write here instead of stdout.",
 )
 @debug_option
-def range_cmd(files, self_distance, temp_c, speed, detector, fmt, output, **beep_kw):
+def range_cmd(files, self_distance, temp_c, speed, clock_ppm, detector, fmt, output, **beep_kw):
     """Distances between devices that played the beep in turn.
 
     FILE... is one WAV with one channel per device (channel i = device i), or one mono
@@ -87,6 +95,7 @@ def range_cmd(files, self_distance, temp_c, speed, detector, fmt, output, **beep
         temp_c=temp_c,
         speed_m_s=speed,
         self_distance_m=sd[0] if len(sd) == 1 else sd,
+        clock_ppm=clock_ppm,
     )
     meta = {"scheme": "beepbeep", "detector": detector, "files": [str(f) for f in files]}
     emit(format_ranges(result, fmt, meta=meta), output)

@@ -19,7 +19,7 @@ Notes
    reverberation is still ringing; reflections, which add at most 6 dB, do not trigger it.
 4. Each such change point brackets the onset to about one window; the edge fit times it.
 5. Bursts are grouped into beeps: a beep needs its first burst and at least ``min_bursts``
-   bursts within a quarter window of their expected place (k * spacing). Each burst gives
+   bursts within half a window plus a hop of their expected place (k * spacing). Each burst gives
    an estimate of the beep onset (its onset minus k * spacing); bursts more than a few
    samples from the median estimate are rejected, and the rest are averaged with inverse
    variance weights. A beep that starts inside an earlier beep is that beep's echo and is
@@ -134,7 +134,7 @@ def group_bursts(
     if min_bursts > k_b:
         raise V.InvalidParameterError(f"min_bursts={min_bursts} exceeds n_bursts={k_b}")
     spacing = beep.spacing_s * fs
-    tol = 0.25 * cand.n_win
+    tol = 0.5 * cand.n_win + cand.hop
     scale = fs / 44100.0
     order = np.argsort(cand.onset)
     t = cand.onset[order]

@@ -17,10 +17,13 @@ after it, so that reflections arriving later than that do not pull the estimate.
 The estimate is invariant to the arrival's amplitude (the residual scales by A^2), which is
 what two-way ranging needs: the loud own beep and the faint far beep are timed alike.
 
-Two stages: (1) on an integer grid spanning the coarse interval, the residual *ratio*
-(residual / window energy) picks the edge — a plain residual would tie with pure-noise
-windows; (2) around that, the plain residual is minimised over continuous ``tau`` in a
-fixed window (golden-section search), which is unbiased at any amplitude.
+Two stages: (1) on an integer grid spanning the coarse interval, the F statistic of the
+edge model in each window (explained energy per parameter over residual energy per degree
+of freedom) finds the edges; the onset is the *earliest* local maximum reaching
+``first_path`` times the largest, so that later reflections adding up in phase into a
+stronger edge do not win; (2) around that, the plain residual is minimised over
+continuous ``tau`` in a fixed window (golden-section search), which is unbiased at any
+amplitude.
 
 The optional background term models a tone already ringing at the beep frequency when the
 burst starts (reverberation of earlier bursts); it is fitted in stage 2 only.
@@ -59,6 +62,16 @@ def _basis(n: np.ndarray, tau: float, *, w: float, fs: float, beep: Beep, backgr
     return np.stack(cols, axis=1)
 
 
+def _first_peak(f: np.ndarray, frac: float) -> int:
+    """Index of the earliest local maximum of ``f`` that reaches ``frac * max(f)``."""
+    top = float(np.max(f))
+    ok = f >= frac * top
+    left = np.concatenate(([True], f[1:] >= f[:-1]))
+    right = np.concatenate((f[:-1] >= f[1:], [True]))
+    idx = np.flatnonzero(ok & left & right)
+    return int(idx[0]) if len(idx) else int(np.argmax(f))
+
+
 def _residual(seg: np.ndarray, n: np.ndarray, tau: float, **kw) -> tuple[float, np.ndarray]:
     b = _basis(n, tau, **kw)
     coef, *_ = np.linalg.lstsq(b, seg, rcond=None)
@@ -76,6 +89,7 @@ def fit_edge(
     pre: int | None = None,
     post: int | None = None,
     background: bool = False,
+    first_path: float = 0.3,
 ) -> EdgeFit | None:
     """Time a burst onset known to lie in samples [lo, hi] of ``x``.
 
@@ -94,6 +108,9 @@ def fit_edge(
         (at 44.1 kHz, scaled with ``fs``) and the taper plus 8 samples.
     background : bool
         Also fit a constant tone at the beep frequency (reverberation of earlier bursts).
+    first_path : float
+        The onset is the earliest local maximum of the edge statistic that reaches this
+        fraction of the largest one in [lo, hi].
 
     Returns
     -------
@@ -112,8 +129,11 @@ def fit_edge(
     if hi < lo:
         return None
 
-    # Stage 1: integer grid, residual ratio. On an integer grid the basis is the same for
-    # every tau (the carrier phase is absorbed), so one QR serves all offsets.
+    # Stage 1: integer grid. On an integer grid the basis is the same for every tau (the
+    # carrier phase is absorbed), so one QR serves all offsets. F statistic of the edge
+    # model in each window; the onset is the earliest local maximum that reaches
+    # ``first_path`` times the largest (first path, not strongest: reflections that add up
+    # in phase can make a later, stronger edge).
     k = np.arange(length, dtype=np.float64)
     q, _ = np.linalg.qr(_basis(k, float(pre), background=False, **kw))
     seg = x[lo - pre : hi + post]
@@ -121,8 +141,8 @@ def fit_edge(
     total = np.einsum("ij,ij->i", frames, frames)
     proj = frames @ q
     explained = np.einsum("ij,ij->i", proj, proj)
-    ratio = (total - explained) / np.maximum(total, 1e-300)
-    a = lo + int(np.argmin(ratio))
+    f_stat = (explained / 2.0) / np.maximum((total - explained) / (length - 2), 1e-300)
+    a = lo + _first_peak(f_stat, first_path)
 
     # Stage 2: continuous tau in a fixed window around a, plain residual.
     h = 3.0 * scale + 1.0

@@ -15,8 +15,12 @@ mean of the two cross speaker-to-microphone distances. A sample-clock error e (p
 recording scales the interval it measures by (1 + e): with intervals of a few tenths of
 a second that is a few millimetres at 50 ppm.
 
-Uncertainty: sigma_D = c / 2 * sqrt(sum of the four onset variances (in s^2)), from each
-onset's 1-sigma.
+Uncertainty: sigma_D^2 = (c/2)^2 * (sum of the four onset variances, s^2)
++ (c/2)^2 * ((Delta_a * e)^2 + (Delta_b * e)^2), where Delta_i = t_i[b] - t_i[a] is the
+interval device i measured and ``e = clock_ppm * 1e-6`` the 1-sigma tolerance of a sample
+clock. The second term is the unknown clock-rate error, which no detection quality can
+reveal: one exchange cannot separate a clock-rate error from a distance. Set
+``clock_ppm=0`` for clocks known to be exact (e.g. one sound card recording every channel).
 """
 
 from __future__ import annotations
@@ -30,7 +34,10 @@ from rangekit import _validate as V
 from rangekit.errors import DetectionError, IncompatibleInputError
 from rangekit.types import Arrivals, Range, RangeResult
 
-__all__ = ["range_beepbeep", "self_distances"]
+__all__ = ["DEFAULT_CLOCK_PPM", "range_beepbeep", "self_distances"]
+
+#: Default 1-sigma sample-clock tolerance of a device, ppm.
+DEFAULT_CLOCK_PPM = 30.0
 
 
 def self_distances(self_distance_m, n_devices: int) -> np.ndarray:
@@ -52,6 +59,7 @@ def range_beepbeep(
     *,
     speed_m_s: float,
     self_distance_m: float | Sequence[float] = 0.0,
+    clock_ppm: float = DEFAULT_CLOCK_PPM,
 ) -> RangeResult:
     """Distances between every pair of devices from their recordings' beep arrivals.
 
@@ -64,6 +72,9 @@ def range_beepbeep(
         Speed of sound in m/s.
     self_distance_m : float or sequence of float
         Speaker-to-microphone distance of every device, or of each device.
+    clock_ppm : float
+        1-sigma sample-clock tolerance of each device in ppm (default 30, typical of the
+        crystal oscillators of phone audio codecs); enters ``sigma_m`` only.
 
     Returns
     -------
@@ -95,6 +106,7 @@ def range_beepbeep(
     if not 100.0 <= c <= 2000.0:
         raise V.InvalidParameterError(f"speed_m_s={c} is outside [100, 2000] m/s")
     s = self_distances(self_distance_m, n)
+    e = V.in_range("clock_ppm", clock_ppm, 0.0, 1e4) * 1e-6
     for i, a in enumerate(arrivals):
         if len(a) != n:
             found = "no beep" if len(a) == 0 else f"{len(a)} beep(s)"
@@ -107,9 +119,10 @@ def range_beepbeep(
     ranges = []
     for a in range(n):
         for b in range(a + 1, n):
-            delta = (t[a][b] - t[a][a]) - (t[b][b] - t[b][a])
-            d = 0.5 * c * delta + 0.5 * (s[a] + s[b])
-            sig = 0.5 * c * math.sqrt(v[a][a] + v[a][b] + v[b][a] + v[b][b])
+            delta_a, delta_b = t[a][b] - t[a][a], t[b][b] - t[b][a]
+            d = 0.5 * c * (delta_a - delta_b) + 0.5 * (s[a] + s[b])
+            var = v[a][a] + v[a][b] + v[b][a] + v[b][b] + (delta_a * e) ** 2 + (delta_b * e) ** 2
+            sig = 0.5 * c * math.sqrt(var)
             flags = []
             if d < 0:
                 flags.append("negative")

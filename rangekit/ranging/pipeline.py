@@ -13,7 +13,7 @@ from rangekit.detect.xcorr import detect_xcorr
 from rangekit.errors import DetectionError, InvalidParameterError
 from rangekit.io.audio import Channel, load_devices
 from rangekit.physics import DEFAULT_TEMP_C, speed_of_sound_m_s
-from rangekit.ranging.beepbeep import range_beepbeep
+from rangekit.ranging.beepbeep import DEFAULT_CLOCK_PPM, range_beepbeep
 from rangekit.signals.beep import Beep, check_beep_fits
 from rangekit.types import Arrivals, RangeResult
 
@@ -73,6 +73,7 @@ def range_channels(
     temp_c: float = DEFAULT_TEMP_C,
     speed_m_s: float | None = None,
     self_distance_m: float | Sequence[float] = 0.0,
+    clock_ppm: float = DEFAULT_CLOCK_PPM,
 ) -> RangeResult:
     """Two-way ranges between devices from their recordings (device i = channel i).
 
@@ -90,12 +91,16 @@ def range_channels(
         Speed of sound; overrides ``temp_c``.
     self_distance_m : float or sequence of float
         Speaker-to-microphone distance of the devices, metres.
+    clock_ppm : float
+        1-sigma sample-clock tolerance per device, ppm (uncertainty only).
     """
     beep = Beep() if beep is None else beep
     c = speed_of_sound_m_s(temp_c) if speed_m_s is None else float(speed_m_s)
     n = len(channels)
     arrivals = [detect_channel(ch, beep=beep, detector=detector, expected=n) for ch in channels]
-    return range_beepbeep(arrivals, speed_m_s=c, self_distance_m=self_distance_m)
+    return range_beepbeep(
+        arrivals, speed_m_s=c, self_distance_m=self_distance_m, clock_ppm=clock_ppm
+    )
 
 
 def range_files(
