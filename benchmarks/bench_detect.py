@@ -1,0 +1,389 @@
+"""Benchmark the beep detectors on 10 minutes of realistic 44.1 kHz audio.
+
+Signal: one simulated two-device exchange, ``render_beepbeep(pair_devices(3.0,
+self_distance_m=0.1), snr_db=20, rng=0)``, channel 0 (1.26 s: the device's own beep from
+0.1 m and the other device's beep from 3 m, ~29.5 dB weaker, full-band SNR of the weak
+one 20 dB), placed every 3 s +- 0.5 s (seeded jitter) in 10 minutes of white noise at the
+level of the rendered noise: 200 exchanges, 400 beeps at known onsets.  ``--quick``: 60 s
+(40 beeps).
+
+Rows, each the best of ``--repeats`` calls (default 3) after a warm-up (numba compile or
+cache load, FFT planning):
+
+* ``detect_changepoint`` float64: one call on the whole array.
+* ``detect_changepoint`` float32: the same array as float32 (accepted; the detector
+  converts it to a float64 copy on entry, ``rangekit._validate.signal_1d``).
+* ``detect_xcorr``: the FFT matched-filter baseline on the whole array (~2.2 GB peak
+  memory for 10 min).  If a 60 s trial projects to more than 60 s or more than half of
+  the available memory, it is run on 60 s and scaled, and the row says so.
+* stages of ``detect_changepoint`` (float64), timed separately with the library's own
+  functions in the order ``find_bursts`` calls them: band energy, change points, one
+  ``fit_edge`` per candidate burst, grouping.
+* peer: ``scipy.signal.ShortTimeFFT(hann(128, sym=False), hop=32, mfft=128,
+  scale_to=None)`` + ``|X|**2`` of the bin nearest 16 kHz (bin 46, 15848 Hz), in chunks
+  of 60 s of whole frames (a 10-min STFT with 65 bins would be ~0.9 GB of complex128);
+  the script checks that it equals ``band_energy`` at that bin frequency.
+
+The table gives seconds, x-realtime (seconds of audio per second of wall time) and the
+time relative to the ShortTimeFFT peer (``t / t_peer``; < 1 is faster than the peer).
+The detections are checked (count and timing against the known onsets) and printed; the
+script exits with status 1 if ``detect_changepoint`` missed or invented beeps, so it
+cannot silently time a broken detector.  When the whole detection is below half of the
+design target (2000x realtime on one core) the script profiles it (cProfile of one call
+plus per-call timings of the edge fit) and prints where the time goes; ``--profile``
+forces that.
+
+BLAS/OpenMP pools are limited to one thread before numpy is imported (one core, like the
+target); the numba kernel is single-threaded and scipy.fft uses one worker by default.
+
+Run: ``python benchmarks/bench_detect.py [--quick] [--repeats N] [--profile]``
+"""
+
+from __future__ import annotations
+
+import os
+
+for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_var, "1")
+
+import argparse
+import cProfile
+import io
+import math
+import pstats
+import sys
+import time
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+import numpy as np
+from scipy.signal import ShortTimeFFT
+from scipy.signal.windows import hann
+
+from rangekit.detect import detect_changepoint, detect_xcorr
+from rangekit.detect._kernels import NUMBA_MIN_SAMPLES, band_energy
+from rangekit.detect.changepoint import (
+    HOP_S,
+    WIN_S,
+    _change_points,
+    _stft_params,
+    group_bursts,
+)
+from rangekit.detect.refine import fit_edge
+from rangekit.signals import Beep
+from rangekit.sim import pair_devices, render_beepbeep
+
+FS = 44100.0
+N_WIN = 128
+HOP = 32
+PERIOD_S = 3.0
+JITTER_S = 0.5
+CHUNK_S = 60.0
+TARGET_X = 2000.0
+#: Detected onsets must be within this many samples of the rendered truth.
+ONSET_TOL = 2.0
+
+
+def make_signal(duration_s: float) -> tuple[np.ndarray, np.ndarray]:
+    """Return (x, true onsets in samples): exchanges every ~3 s in white noise."""
+    sim = render_beepbeep(pair_devices(3.0, self_distance_m=0.1), snr_db=20, rng=0)
+    tile = sim.recordings[0]
+    tile_onsets = sim.onsets[0]  # this device's recording: own beep, then the far one
+    # Noise-only lead of the tile (the interpolator reaches 64 samples before an onset).
+    sigma = float(np.std(tile[: int(tile_onsets.min()) - 200]))
+    rng = np.random.default_rng(2026)
+    n = int(duration_s * FS)
+    x = sigma * rng.standard_normal(n)
+    period, jitter = int(PERIOD_S * FS), int(JITTER_S * FS)
+    starts = np.arange(jitter, n - len(tile) - jitter, period)
+    starts = starts + rng.integers(-jitter, jitter + 1, size=len(starts))
+    for s in starts:
+        x[s : s + len(tile)] = tile
+    truth = (starts[:, None] + tile_onsets[None, :]).ravel()
+    return x, np.sort(truth)
+
+
+def check(name: str, onsets: np.ndarray, truth: np.ndarray) -> bool:
+    """Print whether the detections match the truth one to one; return True if they do."""
+    onsets = np.sort(np.asarray(onsets, dtype=np.float64))
+    if len(onsets) == len(truth):
+        err = np.abs(onsets - truth)
+        ok = bool(np.all(err <= ONSET_TOL))
+        print(
+            f"  check {name:<28}: found {len(onsets)} / {len(truth)} beeps, "
+            f"max |onset - truth| = {err.max():.3f} samples -> {'OK' if ok else 'FAIL'}"
+        )
+        return ok
+    print(f"  check {name:<28}: found {len(onsets)} / {len(truth)} beeps -> FAIL")
+    return False
+
+
+def best_time(fn, repeats: int):
+    """Best wall time of ``repeats`` calls of ``fn()``, and the last result."""
+    best = math.inf
+    res = None
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        res = fn()
+        best = min(best, time.perf_counter() - t0)
+    return best, res
+
+
+def stft_peer(x: np.ndarray) -> np.ndarray:
+    """Band energy at bin 46 by ShortTimeFFT (mfft=128), in ~60 s chunks of whole frames.
+
+    ShortTimeFFT centres slice ``p`` on sample ``p * hop``; our frame ``m`` (window start
+    ``m * hop``) is slice ``p = m + (n_win // 2) // hop``.
+    """
+    sft = ShortTimeFFT(hann(N_WIN, sym=False), hop=HOP, fs=FS, mfft=N_WIN, scale_to=None)
+    q = round(16000.0 / sft.delta_f)
+    p_off = sft.m_num_mid // HOP
+    n_frames = (x.size - N_WIN) // HOP + 1
+    chunk_frames = int(CHUNK_S * FS) // HOP
+    out = np.empty(n_frames)
+    for m0 in range(0, n_frames, chunk_frames):
+        nf = min(chunk_frames, n_frames - m0)
+        seg = x[m0 * HOP : (m0 + nf - 1) * HOP + N_WIN]
+        xs = sft.stft(seg, p0=p_off, p1=p_off + nf)[q]
+        out[m0 : m0 + nf] = xs.real**2 + xs.imag**2
+    return out
+
+
+def stages(x: np.ndarray, beep: Beep) -> tuple[dict[str, float], int, object]:
+    """Time the steps of ``detect_changepoint`` (as ``find_bursts`` runs them)."""
+    n_win, hop = _stft_params(FS, WIN_S, HOP_S)
+    t = {}
+    t0 = time.perf_counter()
+    e = band_energy(x, fs=FS, f_hz=np.array([beep.f_hz]), n_win=n_win, hop=hop)
+    t1 = time.perf_counter()
+    refractory = max(1, int(beep.burst_s * FS / hop))
+    frames = _change_points(
+        e, n_win=n_win, hop=hop, threshold_db=12.0, rise_db=10.0, refractory=refractory
+    )
+    t2 = time.perf_counter()
+    fits = [
+        fit_edge(x, fs=FS, beep=beep, lo=int(m) * hop - n_win // 2, hi=int(m) * hop + n_win + hop)
+        for m in frames
+    ]
+    t3 = time.perf_counter()
+    fits = [f for f in fits if f is not None]
+    from rangekit.detect.changepoint import BurstCandidates
+
+    cand = BurstCandidates(
+        np.array([f.onset for f in fits]),
+        np.array([f.sigma for f in fits]),
+        np.array([f.snr_db for f in fits]),
+        n_win,
+        hop,
+    )
+    arr = group_bursts(cand, fs=FS, beep=beep)
+    t4 = time.perf_counter()
+    t["band_energy (numba)"] = t1 - t0
+    t["change points"] = t2 - t1
+    t["edge fits (fit_edge)"] = t3 - t2
+    t["grouping"] = t4 - t3
+    return t, len(frames), arr
+
+
+def profile(x: np.ndarray, beep: Beep, t_whole: float, duration_s: float) -> None:
+    """Print where ``detect_changepoint`` spends its time."""
+    print("\nprofile of detect_changepoint (float64, whole array)")
+    prof = cProfile.Profile()
+    prof.enable()
+    detect_changepoint(x, fs=FS, beep=beep)
+    prof.disable()
+    s = io.StringIO()
+    st = pstats.Stats(prof, stream=s)
+    st.sort_stats("tottime").print_stats(12)
+    lines = [ln for ln in s.getvalue().splitlines() if ln.strip()]
+    start = next(i for i, ln in enumerate(lines) if ln.lstrip().startswith("ncalls"))
+    print("  cProfile, top 12 by own time (cProfile inflates the total ~1.5-2x):")
+    for ln in lines[start:]:
+        print("   ", ln.replace(str(Path(__file__).resolve().parents[1]) + "/", ""))
+
+    # Per-call costs without profiler overhead, on one real candidate window.
+    import rangekit.detect.refine as refine
+
+    n_win, hop = _stft_params(FS, WIN_S, HOP_S)
+    e = band_energy(x, fs=FS, f_hz=np.array([beep.f_hz]), n_win=n_win, hop=hop)
+    frames = _change_points(
+        e,
+        n_win=n_win,
+        hop=hop,
+        threshold_db=12.0,
+        rise_db=10.0,
+        refractory=max(1, int(beep.burst_s * FS / hop)),
+    )
+    m = int(frames[1])
+    lo, hi = m * hop - n_win // 2, m * hop + n_win + hop
+
+    n_calls = {"n": 0}
+    orig = refine._residual
+
+    def counting(*a, **k):
+        n_calls["n"] += 1
+        return orig(*a, **k)
+
+    refine._residual = counting
+    try:
+        fit = fit_edge(x, fs=FS, beep=beep, lo=lo, hi=hi)
+    finally:
+        refine._residual = orig
+    reps = 200
+    t_fit, _ = best_time(lambda: [fit_edge(x, fs=FS, beep=beep, lo=lo, hi=hi)] * 1, 1)
+    t0 = time.perf_counter()
+    for _ in range(reps):
+        fit_edge(x, fs=FS, beep=beep, lo=lo, hi=hi)
+    t_fit = (time.perf_counter() - t0) / reps
+
+    a = fit.onset
+    scale = FS / 44100.0
+    pre = int(round(24 * scale))
+    post = int(math.ceil(beep.taper_s * FS + 8 * scale))
+    h = 3.0 * scale + 1.0
+    i0, i1 = int(math.floor(a - h)) - pre, int(math.ceil(a + h)) + post
+    n = np.arange(i0, i1, dtype=np.float64)
+    seg = x[i0:i1]
+    kw = {"w": 2.0 * math.pi * beep.f_hz / FS, "fs": FS, "beep": beep, "background": False}
+    b = refine._basis(n, a, **kw)
+
+    def per_call(fn) -> float:
+        t0 = time.perf_counter()
+        for _ in range(reps * 10):
+            fn()
+        return (time.perf_counter() - t0) / (reps * 10)
+
+    t_res = per_call(lambda: refine._residual(seg, n, a, **kw))
+    t_basis = per_call(lambda: refine._basis(n, a, **kw))
+    t_env = per_call(lambda: refine.burst_envelope((n - a) / FS, beep=beep))
+    t_lstsq = per_call(lambda: np.linalg.lstsq(b, seg, rcond=None))
+    n_fits = len(frames)
+    print(
+        f"  per call (no profiler, {len(seg)}-sample fit window):\n"
+        f"    fit_edge          {t_fit * 1e6:8.0f} us  x {n_fits} candidate bursts "
+        f"= {t_fit * n_fits:.2f} s of the {t_whole:.2f} s whole detection\n"
+        f"    _residual         {t_res * 1e6:8.1f} us  x {n_calls['n']} calls per fit_edge "
+        f"= {t_res * n_calls['n'] * 1e6:.0f} us ({t_res * n_calls['n'] / t_fit:.0%} of fit_edge)\n"
+        f"      _basis          {t_basis * 1e6:8.1f} us  (burst_envelope {t_env * 1e6:.1f} us)\n"
+        f"      np.linalg.lstsq {t_lstsq * 1e6:8.1f} us  (a {b.shape[0]}x{b.shape[1]} problem)"
+    )
+    budget = duration_s / TARGET_X
+    print(
+        f"  budget for {TARGET_X:.0f}x realtime: {budget:.3f} s for {duration_s:.0f} s of audio, "
+        f"i.e. {budget / n_fits * 1e6:.0f} us per candidate burst with everything included"
+    )
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--quick", action="store_true", help="60 s of audio, 3 repeats")
+    ap.add_argument("--repeats", type=int, default=3, help="best of N (default 3)")
+    ap.add_argument("--profile", action="store_true", help="always print the profile")
+    args = ap.parse_args()
+    duration_s = 60.0 if args.quick else 600.0
+    repeats = 3 if args.quick else max(1, args.repeats)
+
+    beep = Beep()
+    x, truth = make_signal(duration_s)
+    x32 = x.astype(np.float32)
+    print(
+        f"signal: {duration_s:.0f} s at {FS:.0f} Hz ({x.size} samples), {len(truth)} beeps "
+        f"({len(truth) // 2} exchanges every {PERIOD_S:.0f} +- {JITTER_S} s, own beep 0.1 m "
+        f"and far beep 3 m, far-beep SNR 20 dB), best of {repeats}"
+    )
+
+    # Warm-up: numba (compile or cache load) on a slice long enough for the numba path,
+    # the detectors' first-call imports, scipy's FFT plans.
+    t0 = time.perf_counter()
+    w = x[: NUMBA_MIN_SAMPLES + 50_000]
+    detect_changepoint(w, fs=FS, beep=beep)
+    detect_changepoint(w.astype(np.float32), fs=FS, beep=beep)
+    detect_xcorr(x[: int(5 * FS)], fs=FS, beep=beep)
+    stft_peer(x[: int(5 * FS)])
+    print(f"warm-up (numba compile/cache load, imports): {time.perf_counter() - t0:.2f} s")
+
+    rows: list[tuple[str, float, str]] = []
+    t_cp, arr = best_time(lambda: detect_changepoint(x, fs=FS, beep=beep), repeats)
+    rows.append(("detect_changepoint float64 (whole)", t_cp, ""))
+    t_cp32, arr32 = best_time(lambda: detect_changepoint(x32, fs=FS, beep=beep), repeats)
+    rows.append(("detect_changepoint float32 (whole)", t_cp32, "converted to float64 inside"))
+
+    # xcorr: full array unless a 60 s trial says it would be too slow or too big.
+    n60 = int(60.0 * FS)
+    t0 = time.perf_counter()
+    detect_xcorr(x[:n60], fs=FS, beep=beep)
+    t60 = time.perf_counter() - t0
+    proj_s = t60 * x.size / n60 * math.log2(x.size) / math.log2(n60)
+    proj_bytes = 90.0 * x.size  # measured peak ~84 B/sample (complex128 FFT buffers)
+    avail = _mem_available()
+    if x.size <= n60 or (proj_s <= 60.0 and proj_bytes <= 0.5 * avail):
+        t_xc, arr_xc = best_time(lambda: detect_xcorr(x, fs=FS, beep=beep), repeats)
+        rows.append(("detect_xcorr (whole)", t_xc, f"peak memory ~{proj_bytes / 1e9:.1f} GB"))
+        xc_truth = truth
+    else:
+        t60b, arr_xc = best_time(lambda: detect_xcorr(x[:n60], fs=FS, beep=beep), repeats)
+        t_xc = t60b * x.size / n60
+        rows.append(("detect_xcorr (60 s, scaled x10)", t_xc, "run on 60 s, linear scaling"))
+        xc_truth = truth[truth < n60 - beep.duration_samples]
+
+    t_st, st_arr = math.inf, None
+    st_times: dict[str, float] = {}
+    for _ in range(repeats):
+        t, n_cand, st_arr = stages(x, beep)
+        if sum(t.values()) < t_st:
+            t_st, st_times = sum(t.values()), t
+    for k, v in st_times.items():
+        note = f"{n_cand} candidate bursts" if k.startswith("edge") else ""
+        rows.append((f"  stage: {k}", v, note))
+
+    t_peer, e_peer = best_time(lambda: stft_peer(x), repeats)
+    rows.append(("peer: ShortTimeFFT + bin 46 (mfft=128)", t_peer, f"chunks of {CHUNK_S:.0f} s"))
+
+    e_rk = band_energy(x, fs=FS, f_hz=np.array([46 * FS / N_WIN]), n_win=N_WIN, hop=HOP)
+    rel = float(np.max(np.abs(e_rk - e_peer)) / np.max(e_peer))
+
+    print()
+    print(f"  {'name':<40} {'seconds':>9} {'x-realtime':>11} {'t / t_peer':>11}  note")
+    for name, t, note in rows:
+        print(f"  {name:<40} {t:9.3f} {duration_s / t:10.0f}x {t / t_peer:10.2f}x  {note}")
+    print(
+        f"  peer check: band_energy at {46 * FS / N_WIN:.1f} Hz vs ShortTimeFFT bin 46: "
+        f"max |diff| / max = {rel:.1e}"
+    )
+
+    x_rt = duration_s / t_cp
+    verdict = "MET" if x_rt >= TARGET_X else "NOT MET"
+    print(
+        f"\n  target: whole detection >= {TARGET_X:.0f}x realtime on one core: "
+        f"measured {x_rt:.0f}x -> {verdict} ({x_rt / TARGET_X:.2f} of target)"
+    )
+    print(f"  stages sum {t_st:.3f} s vs whole call {t_cp:.3f} s\n")
+
+    ok = check("detect_changepoint float64", arr.onset, truth)
+    ok &= check("detect_changepoint float32", arr32.onset, truth)
+    ok &= check("stages (same pipeline)", st_arr.onset, truth)
+    check("detect_xcorr (baseline)", arr_xc.onset, xc_truth)
+
+    if args.profile or x_rt < 0.5 * TARGET_X:
+        profile(x, beep, t_cp, duration_s)
+    if not ok:
+        print("\nFAIL: detect_changepoint did not find the expected beeps", file=sys.stderr)
+        return 1
+    return 0
+
+
+def _mem_available() -> float:
+    """Available memory in bytes from /proc/meminfo (inf if unknown)."""
+    try:
+        with open("/proc/meminfo") as f:
+            for line in f:
+                if line.startswith("MemAvailable:"):
+                    return float(line.split()[1]) * 1024.0
+    except OSError:
+        pass
+    return math.inf
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,143 @@
+"""Change-point detector: time origin, sub-sample accuracy, amplitude invariance, structure."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from rangekit.detect import detect, detect_changepoint, detect_xcorr
+from rangekit.errors import IncompatibleInputError, InvalidParameterError
+from rangekit.signals import Beep
+from rangekit.signals.beep import beep_continuous
+
+FS = 44100.0
+
+
+def _place(n: int, onsets, amps, *, beep: Beep, fs: float = FS) -> np.ndarray:
+    """Beeps at exact fractional onsets (continuous-time evaluation, no interpolation)."""
+    t = np.arange(n) / fs
+    x = np.zeros(n)
+    for t0, a in zip(onsets, amps, strict=True):
+        x += a * beep_continuous(t - t0 / fs, beep=beep)
+    return x
+
+
+@pytest.mark.parametrize("detector", [detect_changepoint, detect_xcorr])
+@pytest.mark.parametrize("onset", [3000.0, 3000.25, 3000.5, 3000.77])
+def test_time_origin_and_subsample_onset_noiseless(detector, onset):
+    b = Beep()
+    x = _place(30000, [onset], [1.0], beep=b)
+    arr = detector(x, fs=FS, beep=b)
+    assert len(arr) == 1
+    tol = 0.02 if detector is detect_changepoint else 0.2
+    assert abs(arr.onset[0] - onset) < tol
+
+
+def test_onset_does_not_shift_with_amplitude():
+    """The loud own beep and the faint far beep must be timed alike (60 dB apart)."""
+    b = Beep()
+    rng = np.random.default_rng(0)
+    onsets = [2000.3, 30000.6]
+    errs = {}
+    for amp in (1.0, 1e-3):
+        x = _place(60000, onsets, [amp, amp], beep=b)
+        x += 1e-6 * rng.standard_normal(len(x))
+        arr = detect_changepoint(x, fs=FS, beep=b)
+        errs[amp] = arr.onset - onsets
+    np.testing.assert_allclose(errs[1.0], errs[1e-3], atol=0.02)
+    assert np.all(np.abs(errs[1.0]) < 0.02)
+
+
+def test_loud_and_faint_beep_in_one_recording():
+    b = Beep()
+    rng = np.random.default_rng(1)
+    onsets = [4000.4, 40000.9]
+    x = _place(70000, onsets, [1.0, 0.01], beep=b)
+    # SNR of the faint beep 20 dB (full band).
+    x += np.sqrt(0.5 * 0.01**2 / 100) * rng.standard_normal(len(x))
+    arr = detect_changepoint(x, fs=FS, beep=b)
+    assert len(arr) == 2
+    assert abs(arr.onset[0] - onsets[0]) < 0.05
+    assert abs(arr.onset[1] - onsets[1]) < 1.5
+    assert arr.snr_db[0] > arr.snr_db[1] + 30
+    assert np.all(arr.confidence == 1.0)
+    # The reported sigma is of the right size for the faint beep.
+    assert 0.05 < arr.sigma[1] < 1.5
+
+
+def test_other_sample_rate_and_other_beep():
+    b = Beep(f_hz=18000.0, n_bursts=3, spacing=3000, burst_len=300, taper=30)
+    fs = 48000.0
+    onset = 1234.56
+    x = _place(20000, [onset], [0.3], beep=b, fs=fs)
+    arr = detect_changepoint(x, fs=fs, beep=b)
+    assert len(arr) == 1 and abs(arr.onset[0] - onset) < 0.05
+    assert arr.burst_onsets.shape == (1, 3)
+    spacing_48k = 3000 / 44100 * fs
+    np.testing.assert_allclose(np.diff(arr.burst_onsets[0]), spacing_48k, atol=0.05)
+
+
+def test_silence_gives_empty_result():
+    arr = detect_changepoint(np.zeros(44100), fs=FS)
+    assert len(arr) == 0 and arr.burst_onsets.shape == (0, 4)
+    arr = detect_changepoint(np.random.default_rng(0).standard_normal(44100), fs=FS)
+    assert len(arr) == 0
+
+
+def test_bursts_with_wrong_spacing_are_not_a_beep():
+    b_played = Beep(spacing=4000)
+    x = _place(40000, [1000.0], [1.0], beep=b_played)
+    assert len(detect_changepoint(x, fs=FS, beep=Beep())) == 0
+    assert len(detect_changepoint(x, fs=FS, beep=b_played)) == 1
+
+
+def test_single_burst_or_click_is_not_a_beep():
+    b = Beep()
+    one = Beep(n_bursts=1)
+    x = _place(30000, [1000.0], [1.0], beep=one)
+    x[20000] = 1.0  # a click
+    assert len(detect_changepoint(x, fs=FS, beep=b)) == 0
+
+
+def test_a_corrupted_burst_is_rejected_and_the_beep_kept():
+    b = Beep()
+    x = _place(40000, [1000.0], [1.0], beep=b)
+    # Burst 2 is corrupted: an extra tone starts 40 samples before it.
+    s = 1000 + 2 * b.spacing - 40
+    x[s : s + 60] += 2.0 * np.sin(2 * np.pi * 16000 * np.arange(60) / FS)
+    arr = detect_changepoint(x, fs=FS, beep=b)
+    assert len(arr) == 1
+    assert abs(arr.onset[0] - 1000.0) < 0.05
+    assert arr.confidence[0] == 0.75
+    assert np.isnan(arr.burst_onsets[0, 2])
+
+
+def test_late_echo_of_a_beep_is_dropped():
+    b = Beep()
+    # An echo 30 ms later (after each burst has ended) at half amplitude.
+    x = _place(40000, [1000.0, 1000.0 + 1323.0], [1.0, 0.5], beep=b)
+    arr = detect_changepoint(x, fs=FS, beep=b)
+    assert len(arr) == 1 and abs(arr.onset[0] - 1000.0) < 0.05
+
+
+def test_first_path_wins_over_a_stronger_reflection():
+    """Two reflections adding in phase 80 samples after a weaker direct path."""
+    b = Beep()
+    rng = np.random.default_rng(3)
+    x = _place(40000, [1000.0, 1080.0], [1.0, 2.0], beep=b)
+    x += np.sqrt(0.5 / 10) * rng.standard_normal(len(x))  # 10 dB below the direct path
+    arr = detect_changepoint(x, fs=FS, beep=b)
+    assert len(arr) == 1 and abs(arr.onset[0] - 1000.0) < 2.0
+
+
+def test_detect_dispatch_and_errors():
+    x = np.zeros(10000)
+    assert len(detect(x, fs=FS, detector="xcorr")) == 0
+    with pytest.raises(InvalidParameterError, match="detector"):
+        detect(x, fs=FS, detector="nope")
+    with pytest.raises(IncompatibleInputError, match="too low"):
+        detect_changepoint(x, fs=16000.0)
+    with pytest.raises(InvalidParameterError, match="1-D"):
+        detect_changepoint(np.zeros((10, 2)), fs=FS)
+    with pytest.raises(InvalidParameterError, match="NaN"):
+        detect_changepoint(np.full(100, np.nan), fs=FS)
