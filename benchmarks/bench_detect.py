@@ -66,6 +66,7 @@ from rangekit.detect._kernels import NUMBA_MIN_SAMPLES, band_energy
 from rangekit.detect.changepoint import (
     HOP_S,
     WIN_S,
+    BurstCandidates,
     _change_points,
     _stft_params,
     group_bursts,
@@ -168,8 +169,6 @@ def stages(x: np.ndarray, beep: Beep) -> tuple[dict[str, float], int, object]:
     ]
     t3 = time.perf_counter()
     fits = [f for f in fits if f is not None]
-    from rangekit.detect.changepoint import BurstCandidates
-
     cand = BurstCandidates(
         np.array([f.onset for f in fits]),
         np.array([f.sigma for f in fits]),
@@ -231,7 +230,6 @@ def profile(x: np.ndarray, beep: Beep, t_whole: float, duration_s: float) -> Non
     finally:
         refine._residual = orig
     reps = 200
-    t_fit, _ = best_time(lambda: [fit_edge(x, fs=FS, beep=beep, lo=lo, hi=hi)] * 1, 1)
     t0 = time.perf_counter()
     for _ in range(reps):
         fit_edge(x, fs=FS, beep=beep, lo=lo, hi=hi)

@@ -18,10 +18,10 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from rangekit.errors import InvalidParameterError  # noqa: E402
-from rangekit.experiments.beepbeep_accuracy import run_trials, summarize  # noqa: E402
-from rangekit.signals import Beep, beep_waveform  # noqa: E402
-from rangekit.sim import ShoeboxRoom  # noqa: E402
+from rangekit.errors import InvalidParameterError
+from rangekit.experiments.beepbeep_accuracy import run_trials, summarize
+from rangekit.signals import Beep, beep_waveform
+from rangekit.sim import ShoeboxRoom
 
 
 def splatter_db(beep: Beep, f_max_hz: float = 14000.0) -> float:

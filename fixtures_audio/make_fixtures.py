@@ -16,9 +16,9 @@ import numpy as np
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parent))
 
-from rangekit.io.audio import write_audio  # noqa: E402
-from rangekit.io.sidecar import write_json  # noqa: E402
-from rangekit.sim import Device, ShoeboxRoom, pair_devices, render_beepbeep  # noqa: E402
+from rangekit.io.audio import write_audio
+from rangekit.io.sidecar import write_json
+from rangekit.sim import Device, ShoeboxRoom, pair_devices, render_beepbeep
 
 
 def _write(name: str, sim, *, seed: int, note: str, mono: bool = False) -> None:

@@ -65,7 +65,7 @@ def test_n_devices_every_pair():
 
 def test_clock_rate_error_effect_is_interval_times_ppm():
     spk = [np.zeros(3), np.array([2.0, 0, 0])]
-    mic = [s + [0, 0.1, 0] for s in spk]
+    mic = [s + np.array([0, 0.1, 0]) for s in spk]
     play = [0.3, 0.8]
     base = _exchange(spk, mic, play_s=play, rec_start_s=[0, 0], fs=[FS, FS])
     fast = _exchange(spk, mic, play_s=play, rec_start_s=[0, 0], fs=[FS, FS], ppm=[50.0, 0.0])
