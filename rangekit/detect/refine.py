@@ -26,7 +26,8 @@ continuous ``tau`` in a fixed window (golden-section search), which is unbiased 
 amplitude.
 
 The optional background term models a tone already ringing at the beep frequency when the
-burst starts (reverberation of earlier bursts); it is fitted in stage 2 only.
+burst starts (reverberation of earlier bursts); stage 1 then uses the partial F statistic
+of the edge over the background-only model.
 """
 
 from __future__ import annotations
@@ -134,14 +135,25 @@ def fit_edge(
     # model in each window; the onset is the earliest local maximum that reaches
     # ``first_path`` times the largest (first path, not strongest: reflections that add up
     # in phase can make a later, stronger edge).
+    # With a background tone, the statistic is the partial F test of the edge columns
+    # over the background-only model (a plateau is then explained by the background alone).
     k = np.arange(length, dtype=np.float64)
-    q, _ = np.linalg.qr(_basis(k, float(pre), background=False, **kw))
     seg = x[lo - pre : hi + post]
     frames = np.lib.stride_tricks.sliding_window_view(seg, length)
     total = np.einsum("ij,ij->i", frames, frames)
-    proj = frames @ q
-    explained = np.einsum("ij,ij->i", proj, proj)
-    f_stat = (explained / 2.0) / np.maximum((total - explained) / (length - 2), 1e-300)
+
+    def explained_by(cols: np.ndarray) -> np.ndarray:
+        q, _ = np.linalg.qr(cols)
+        proj = frames @ q
+        return np.einsum("ij,ij->i", proj, proj)
+
+    full = explained_by(_basis(k, float(pre), background=background, **kw))
+    base = explained_by(_basis(k, float(pre), background=True, **kw)[:, 2:]) if background else 0.0
+    n_par = 4 if background else 2
+    # Residual floored at 1e-12 of the window energy: noiseless input must not turn
+    # rounding residue into a statistic.
+    resid = np.maximum(total - full, 1e-12 * total + 1e-300) / (length - n_par)
+    f_stat = np.maximum(full - base, 0.0) / 2.0 / resid
     a = lo + _first_peak(f_stat, first_path)
 
     # Stage 2: continuous tau in a fixed window around a, plain residual.

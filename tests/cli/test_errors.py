@@ -155,10 +155,11 @@ def test_burst_spacing_mismatch(tmp_path):
     f = _synth(tmp_path, "spaced.wav", "--distance", 2, "--spacing", 4000)
     line = _assert_error(_run(["range", f]), 6, "spaced.wav", "spacing", "4000", "5000")
     assert "--spacing" in line
-    # With the right --spacing the same file ranges fine.
-    ok = _run(["range", f, "--spacing", 4000, "--format", "json"])
-    assert ok.exit_code == 0, ok.stderr
+    # With the right --spacing (and the true self-distance) the same file ranges fine.
     truth = json.loads(f.with_suffix(".json").read_text())
+    sd = truth["devices"][0]["self_distance_m"]
+    ok = _run(["range", f, "--spacing", 4000, "--self-distance", sd, "--format", "json"])
+    assert ok.exit_code == 0, ok.stderr
     assert json.loads(ok.stdout)["ranges"][0]["distance_m"] == pytest.approx(
         truth["pairs"][0]["distance_m"], abs=0.01
     )
