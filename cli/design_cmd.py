@@ -34,14 +34,12 @@ def design_beep(amplitude, fs, output, **beep_kw):
     """
     import numpy as np
 
+    from rangekit.errors import InvalidParameterError
     from rangekit.io.audio import write_audio
     from rangekit.signals.beep import beep_continuous, check_beep_fits
 
-    from rangekit.errors import InvalidParameterError
-
     if fs is not None and not (np.isfinite(fs) and 1000.0 <= fs <= 10e6):
-        # Without this, NaN was an internal error (70), 0 or negative an exit 5, and 1e9 a
-        # 700 MB file.
+        # Checked here: NaN would be an internal error, and a huge rate a huge file.
         raise InvalidParameterError(f"--fs {fs:g} Hz must be within [1000, 1e7] Hz")
     beep = make_beep(beep_kw, amplitude=amplitude)
     rate = beep.fs if fs is None else fs

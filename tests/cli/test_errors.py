@@ -293,6 +293,13 @@ def test_design_beep_beyond_nyquist(tmp_path):
     assert not out.exists()
 
 
+@pytest.mark.parametrize("fs", ["nan", "0", "-5", "1e9"])
+def test_design_beep_bad_file_rate(tmp_path, fs):
+    out = tmp_path / "beep.wav"
+    _assert_error(_run(["design", "beep", "--fs", fs, "-o", out]), 2, "--fs")
+    assert not out.exists()
+
+
 @pytest.mark.parametrize(
     "opts",
     [{}, {"bursts": 3, "spacing": 3000, "burst_len": 300}],

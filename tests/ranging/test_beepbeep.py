@@ -6,6 +6,8 @@ import math
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from rangekit.errors import DetectionError, IncompatibleInputError, InvalidParameterError
 from rangekit.ranging import range_beepbeep
@@ -106,3 +108,25 @@ def test_errors():
         range_beepbeep(ok, speed_m_s=5.0)
     with pytest.raises(IncompatibleInputError, match="at least 2"):
         range_beepbeep(ok[:1], speed_m_s=C)
+
+
+@settings(max_examples=60, deadline=None)
+@given(
+    seed=st.integers(0, 2**32 - 1),
+    n=st.integers(2, 5),
+    fs=st.sampled_from([44100.0, 48000.0, 96000.0]),
+)
+def test_property_exact_for_any_geometry_and_schedule(seed, n, fs):
+    """Noiseless onsets from any positions, starts and play times give the exact truth."""
+    rng = np.random.default_rng(seed)
+    spk = [rng.uniform(-10, 10, 3) for _ in range(n)]
+    mic = [s + rng.normal(0, 0.1, 3) for s in spk]
+    play = np.cumsum(rng.uniform(0.1, 2.0, n))
+    rates = [fs if i % 2 else 44100.0 for i in range(n)]
+    arrs = _exchange(spk, mic, play_s=play, rec_start_s=rng.uniform(-1, 0.1, n), fs=rates)
+    sd = [float(np.linalg.norm(spk[i] - mic[i])) for i in range(n)]
+    d = range_beepbeep(arrs, speed_m_s=C, self_distance_m=sd).distance_matrix_m()
+    for a in range(n):
+        for b in range(a + 1, n):
+            truth = 0.5 * (np.linalg.norm(spk[a] - mic[b]) + np.linalg.norm(spk[b] - mic[a]))
+            assert abs(d[a, b] - truth) < 1e-8
