@@ -43,7 +43,7 @@ def main() -> None:
         head += f" | {name + ' p90/max/fail':>26}"
     print(head)
     for burst_len in (220, 441, 882, 1764):
-        for taper in (11, 22, 44, 88):
+        for taper in (11, 22, 44):
             try:
                 beep = Beep(burst_len=burst_len, taper=taper)
             except InvalidParameterError:

@@ -28,15 +28,24 @@ ROOT = HERE.parent
 
 
 def cpu_model() -> str:
-    """CPU model name from /proc/cpuinfo (or platform.processor())."""
+    """CPU model name from /proc/cpuinfo with family/model/stepping, MHz and SIMD flags."""
+    info: dict[str, str] = {}
     try:
         with open("/proc/cpuinfo") as f:
             for line in f:
-                if line.startswith("model name"):
-                    return line.split(":", 1)[1].strip()
+                if not line.strip():
+                    break  # first processor only
+                key, _, val = line.partition(":")
+                info[key.strip()] = val.strip()
     except OSError:
-        pass
-    return platform.processor() or "unknown"
+        return platform.processor() or "unknown"
+    name = info.get("model name", platform.processor() or "unknown")
+    flags = set(info.get("flags", "").split())
+    simd = " ".join(f for f in ("avx2", "fma", "avx512f") if f in flags) or "no avx2"
+    return (
+        f"{name} (family {info.get('cpu family', '?')}, model {info.get('model', '?')}, "
+        f"stepping {info.get('stepping', '?')}; {info.get('cpu MHz', '?')} MHz; {simd})"
+    )
 
 
 def version(dist: str) -> str:
@@ -53,7 +62,7 @@ def machine_facts() -> list[str]:
     except AttributeError:
         n_usable = n_cpu
     try:
-        load = "load average %.2f %.2f %.2f (1, 5, 15 min)" % os.getloadavg()
+        load = "load average {:.2f} {:.2f} {:.2f} (1, 5, 15 min)".format(*os.getloadavg())
     except OSError:
         load = "load average unknown"
     return [
@@ -93,7 +102,8 @@ def main() -> int:
             cmd.append("--quick")
         print(f"\n{'-' * 78}\n## {path.name}\n$ python {' '.join(cmd[1:])}\n{'-' * 78}", flush=True)
         t0 = time.perf_counter()
-        rc = subprocess.run(cmd, cwd=ROOT, check=False).returncode
+        env = {**os.environ, "PYTHONUNBUFFERED": "1"}  # stream in order, as it is printed
+        rc = subprocess.run(cmd, cwd=ROOT, env=env, check=False).returncode
         dt = time.perf_counter() - t0
         status = "ok" if rc == 0 else f"FAILED (exit {rc})"
         print(f"-- {path.name}: {status}, {dt:.1f} s wall", flush=True)

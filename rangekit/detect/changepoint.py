@@ -20,9 +20,10 @@ Notes
 4. Each such change point brackets the onset to about one window; the edge fit times it.
 5. Bursts are grouped into beeps: a beep needs its first burst and at least ``min_bursts``
    bursts within half a window plus a hop of their expected place (k * spacing). Each burst gives
-   an estimate of the beep onset (its onset minus k * spacing); bursts more than a few
-   samples from the median estimate are rejected, and the rest are averaged with inverse
-   variance weights. A beep that starts inside an earlier beep is that beep's echo and is
+   an estimate of the beep onset (its onset minus k * spacing); the centre is the weighted
+   mean of the estimates agreeing with the best-supported one (the earliest such mean on
+   a tie: a burst timed on a reflection is late); bursts more than a few samples from it
+   are rejected, and the rest are averaged with inverse variance weights. A beep that starts inside an earlier beep is that beep's echo and is
    dropped.
 """
 
@@ -169,10 +170,17 @@ def group_bursts(
         js = np.array([j for j in idx if j >= 0])
         est = cand.onset[js] - ks * spacing
         sg = np.maximum(cand.sigma[js], 1e-3)
-        med = float(np.median(est))
         # Allowed scatter: timing noise, plus 200 ppm of clock-rate mismatch per spacing.
         allow = 2.0 * scale + 4.0 * sg + 2e-4 * ks * spacing
-        ok = np.abs(est - med) <= allow
+        # The centre is the weighted mean of the estimates that agree with the best-supported
+        # one; on a tie, the earliest such mean (a burst timed on a reflection is late).
+        close = np.abs(est[:, None] - est[None, :]) <= np.maximum(allow[:, None], allow[None, :])
+        support = close.sum(axis=1)
+        w_all = 1.0 / sg**2
+        means = (close * w_all[None, :]) @ est / (close @ w_all)
+        best = np.flatnonzero(support == support.max())
+        centre = float(np.min(means[best]))
+        ok = np.abs(est - centre) <= allow
         if ok.sum() < min(2, k_b):
             continue
         wts = 1.0 / sg[ok] ** 2

@@ -20,7 +20,7 @@ what two-way ranging needs: the loud own beep and the faint far beep are timed a
 Two stages: (1) on an integer grid spanning the coarse interval, the F statistic of the
 edge model in each window (explained energy per parameter over residual energy per degree
 of freedom) finds the edges; the onset is the *earliest* local maximum reaching
-``first_path`` times the largest, so that later reflections adding up in phase into a
+``first_path`` (0.1) times the largest, so that later reflections adding up in phase into a
 stronger edge do not win; (2) around that, the plain residual is minimised over
 continuous ``tau`` in a fixed window (golden-section search), which is unbiased at any
 amplitude.
@@ -63,10 +63,10 @@ def _basis(n: np.ndarray, tau: float, *, w: float, fs: float, beep: Beep, backgr
     return np.stack(cols, axis=1)
 
 
-def _first_peak(f: np.ndarray, frac: float) -> int:
-    """Index of the earliest local maximum of ``f`` that reaches ``frac * max(f)``."""
+def _first_peak(f: np.ndarray, frac: float, f_min: float) -> int:
+    """Index of the earliest local maximum of ``f`` reaching ``frac * max(f)`` and ``f_min``."""
     top = float(np.max(f))
-    ok = f >= frac * top
+    ok = f >= max(frac * top, min(f_min, top))
     left = np.concatenate(([True], f[1:] >= f[:-1]))
     right = np.concatenate((f[:-1] >= f[1:], [True]))
     idx = np.flatnonzero(ok & left & right)
@@ -90,7 +90,8 @@ def fit_edge(
     pre: int | None = None,
     post: int | None = None,
     background: bool = False,
-    first_path: float = 0.3,
+    first_path: float = 0.1,
+    f_min: float = 15.0,
 ) -> EdgeFit | None:
     """Time a burst onset known to lie in samples [lo, hi] of ``x``.
 
@@ -111,7 +112,10 @@ def fit_edge(
         Also fit a constant tone at the beep frequency (reverberation of earlier bursts).
     first_path : float
         The onset is the earliest local maximum of the edge statistic that reaches this
-        fraction of the largest one in [lo, hi].
+        fraction of the largest one in [lo, hi] and at least ``f_min``.
+    f_min : float
+        Smallest F statistic taken as an edge (noise alone exceeds 15 with probability
+        about e^-15 per offset).
 
     Returns
     -------
@@ -154,7 +158,7 @@ def fit_edge(
     # rounding residue into a statistic.
     resid = np.maximum(total - full, 1e-12 * total + 1e-300) / (length - n_par)
     f_stat = np.maximum(full - base, 0.0) / 2.0 / resid
-    a = lo + _first_peak(f_stat, first_path)
+    a = lo + _first_peak(f_stat, first_path, f_min)
 
     # Stage 2: continuous tau in a fixed window around a, plain residual.
     h = 3.0 * scale + 1.0
