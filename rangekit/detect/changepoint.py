@@ -19,12 +19,12 @@ Notes
    reverberation is still ringing; reflections, which add at most 6 dB, do not trigger it.
 4. Each such change point brackets the onset to about one window; the edge fit times it.
 5. Bursts are grouped into beeps: a beep needs its first burst and at least ``min_bursts``
-   bursts within half a window plus a hop of their expected place (k * spacing). Each burst gives
-   an estimate of the beep onset (its onset minus k * spacing); the centre is the weighted
+   bursts within half a window plus a hop of their expected place (k * spacing). Each burst
+   gives an estimate of the beep onset (its onset minus k * spacing); the centre is the weighted
    mean of the estimates agreeing with the best-supported one (the earliest such mean on
    a tie: a burst timed on a reflection is late); bursts more than a few samples from it
-   are rejected, and the rest are averaged with inverse variance weights. A beep that starts inside an earlier beep is that beep's echo and is
-   dropped.
+   are rejected, and the rest are averaged with inverse variance weights. A beep that
+   starts inside an earlier beep is that beep's echo and is dropped.
 """
 
 from __future__ import annotations
