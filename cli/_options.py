@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import functools
+import math
 
 import click
 
@@ -83,16 +84,24 @@ def debug_option(f):
     return wrapper
 
 
-def float_list(text: str | None, *, name: str) -> list[float] | None:
-    """Parse "0.1" or "0.1,0.12" into floats, with a usage error naming the option."""
+def float_list(
+    text: str | None, *, name: str, lo: float = -math.inf, hi: float = math.inf
+) -> list[float] | None:
+    """Parse "0.1" or "0.1,0.12" into finite floats in [lo, hi]; usage errors name the option."""
     if text is None:
         return None
     try:
-        return [float(t) for t in text.split(",") if t.strip()]
+        vals = [float(t) for t in text.split(",") if t.strip()]
     except ValueError:
         raise click.BadParameter(
             f"{text!r} is not a comma-separated list of numbers", param_hint=name
         ) from None
+    if not vals:
+        raise click.BadParameter(f"{text!r} holds no number", param_hint=name)
+    for v in vals:
+        if not (math.isfinite(v) and lo <= v <= hi):
+            raise click.BadParameter(f"{v:g} is not within [{lo:g}, {hi:g}]", param_hint=name)
+    return vals
 
 
 def emit(text: str, output: str | None) -> None:

@@ -1,9 +1,11 @@
 """The ``rangekit`` command group; maps library errors to exit codes in one place.
 
-Exit codes (``docs/cli.md``): 0 success; 1 other rangekit error; 2 usage or invalid
-parameter; 3 input file missing or unreadable, or output not writable; 4 not audio;
-5 inputs incompatible (sample rate, channel or file count); 6 detection failure
-(beeps not found, burst spacing does not fit); 70 internal error (a bug); 130 interrupted.
+Every error is one line on stderr, ``rangekit: error: ...`` (``--debug`` shows the
+traceback of library errors). Exit codes (``docs/cli.md``): 0 success; 1 other rangekit
+error; 2 usage or invalid parameter; 3 input file missing or unreadable, or output not
+writable; 4 not audio; 5 inputs incompatible (sample rate, channel or file count);
+6 detection failure (beeps not found, burst spacing does not fit); 70 internal error
+(a bug); 130 interrupted.
 """
 
 from __future__ import annotations
@@ -37,6 +39,23 @@ class RangekitGroup(click.Group):
 
         mod, attr = self._commands[name]
         return getattr(importlib.import_module(mod), attr)
+
+    def main(self, args=None, prog_name=None, complete_var=None, standalone_mode=True, **extra):
+        """Like click's, but every usage error is one line on stderr: ``rangekit: error: ...``."""
+        if not standalone_mode:
+            return super().main(args, prog_name, complete_var, standalone_mode=False, **extra)
+        try:
+            rv = super().main(args, prog_name, complete_var, standalone_mode=False, **extra)
+        except click.ClickException as e:
+            msg = " ".join(e.format_message().split())
+            ctx = getattr(e, "ctx", None)
+            hint = f" (see '{ctx.command_path} --help')" if ctx is not None else ""
+            click.echo(f"rangekit: error: {msg}{hint}", err=True)
+            sys.exit(e.exit_code)
+        except click.Abort:
+            click.echo("rangekit: interrupted", err=True)
+            sys.exit(EXIT_INTERRUPTED)
+        sys.exit(rv if isinstance(rv, int) else 0)
 
     def invoke(self, ctx):
         from rangekit.errors import RangekitError

@@ -33,7 +33,7 @@ from rangekit_cli._options import (
 @click.option(
     "--temperature",
     "temp_c",
-    type=float,
+    type=click.FloatRange(-60.0, 60.0),
     default=20.0,
     show_default=True,
     help="Air temperature, C.",
@@ -41,7 +41,7 @@ from rangekit_cli._options import (
 @click.option(
     "--speed-of-sound",
     "speed",
-    type=float,
+    type=click.FloatRange(100.0, 2000.0),
     default=None,
     metavar="MPS",
     help="Speed of sound in m/s (overrides --temperature).",
@@ -49,7 +49,7 @@ from rangekit_cli._options import (
 @click.option(
     "--clock-ppm",
     "clock_ppm",
-    type=float,
+    type=click.FloatRange(0.0, 1e4),
     default=30.0,
     show_default=True,
     help="1-sigma sample-clock tolerance per device, ppm (widens sigma_m only).",
@@ -71,7 +71,9 @@ from rangekit_cli._options import (
     help="Write here instead of stdout.",
 )
 @debug_option
-def range_cmd(files, self_distance, temp_c, speed, clock_ppm, detector, fmt, output, **beep_kw):
+def range_cmd(
+    files, scheme, self_distance, temp_c, speed, clock_ppm, detector, fmt, output, **beep_kw
+):
     """Distances between devices that played the beep in turn.
 
     FILE... is one WAV with one channel per device (channel i = device i), or one mono
@@ -86,10 +88,11 @@ def range_cmd(files, self_distance, temp_c, speed, clock_ppm, detector, fmt, out
     from rangekit.io.results import format_ranges
     from rangekit.ranging import range_files
 
-    sd = float_list(self_distance, name="--self-distance")
+    sd = float_list(self_distance, name="--self-distance", lo=0.0, hi=2.0)
     beep = make_beep(beep_kw)
     result = range_files(
         files,
+        scheme=scheme,
         beep=beep,
         detector=detector,
         temp_c=temp_c,
@@ -97,5 +100,5 @@ def range_cmd(files, self_distance, temp_c, speed, clock_ppm, detector, fmt, out
         self_distance_m=sd[0] if len(sd) == 1 else sd,
         clock_ppm=clock_ppm,
     )
-    meta = {"scheme": "beepbeep", "detector": detector, "files": [str(f) for f in files]}
+    meta = {"scheme": scheme, "detector": detector, "files": [str(f) for f in files]}
     emit(format_ranges(result, fmt, meta=meta), output)

@@ -5,8 +5,10 @@ The recording is correlated with the analytic beep template ``env(t) exp(j 2 pi 
 its peaks above ``threshold_db`` over the median envelope, taken greedily from the
 strongest with suppression of +-(beep duration) around each (which also removes the
 side lobes at +-k*spacing that a burst train's correlation has). The peak is refined by a
-parabola through the three highest samples. The peak time is the template's start, i.e.
-the onset of the first burst, with no offset to remove.
+parabola through the three highest samples. Each beep's bursts are then checked at their
+expected places (k * spacing): a beep with fewer than ``min_confidence`` of its bursts at
+half the largest burst's amplitude or more is dropped (the burst-spacing check). The peak
+time is the template's start, i.e. the onset of the first burst, with no offset to remove.
 
 This is the baseline the change-point detector is compared against (``docs/accuracy.md``):
 reflections that arrive during a burst move the correlation peak, where the change-point
@@ -33,6 +35,7 @@ def detect_xcorr(
     beep: Beep | None = None,
     threshold_db: float = 20.0,
     max_beeps: int | None = None,
+    min_confidence: float = 0.75,
 ) -> Arrivals:
     """Detect beep arrivals by matched filtering with the whole beep.
 
@@ -48,6 +51,9 @@ def detect_xcorr(
         Minimum peak height over the median of the correlation envelope, in dB.
     max_beeps : int, optional
         Keep at most this many (the strongest).
+    min_confidence : float
+        Drop beeps whose fraction of bursts with at least half the largest burst's matched
+        amplitude (at the expected burst places) is below this: the burst-spacing check.
 
     Returns
     -------
@@ -110,12 +116,34 @@ def detect_xcorr(
         snr.append(10 * math.log10(max(0.5 * amp**2 / max(noise_var, 1e-300) / 2, 1e-30)))
     onset = np.array(onset)
     bursts = onset[:, None] + np.arange(k_b)[None, :] * beep.spacing_s * fs
+    conf = _burst_confidence(x, bursts, fs=fs, beep=beep)
+    keep = conf >= min_confidence
     return Arrivals(
-        onset,
+        onset[keep],
         fs,
-        np.array(sigma),
-        np.array(snr),
-        np.ones(len(onset)),
-        bursts.reshape(len(onset), k_b),
+        np.array(sigma)[keep],
+        np.array(snr)[keep],
+        conf[keep],
+        bursts.reshape(len(onset), k_b)[keep],
         "xcorr",
     )
+
+
+def _burst_confidence(x: np.ndarray, bursts: np.ndarray, *, fs: float, beep: Beep) -> np.ndarray:
+    """Fraction of each beep's bursts whose matched amplitude reaches half the largest.
+
+    A beep played with another burst spacing correlates with the whole template where only
+    some bursts line up; its other bursts then show little amplitude at their expected places.
+    """
+    n_b = int(math.ceil(beep.burst_s * fs))
+    one = beep_continuous_analytic(np.arange(n_b) / fs, beep=beep)
+    one_energy = float(np.sum(np.abs(one) ** 2))
+    conf = np.zeros(len(bursts))
+    for i, row in enumerate(bursts):
+        amp = []
+        for pos in np.rint(row).astype(np.int64):
+            seg = x[max(pos, 0) : max(pos, 0) + n_b]
+            amp.append(abs(np.dot(seg, np.conj(one[: len(seg)]))) / one_energy if len(seg) else 0.0)
+        amp = np.asarray(amp)
+        conf[i] = float(np.mean(amp >= 0.5 * amp.max())) if amp.max() > 0 else 0.0
+    return conf

@@ -121,6 +121,8 @@ def write_audio(
     than clip silently.
     """
     x = np.asarray(x, dtype=np.float64)
+    if not np.all(np.isfinite(x)):
+        raise AudioFormatError(f"cannot write '{path}': the signal holds NaN or infinite samples")
     peak = float(np.max(np.abs(x))) if x.size else 0.0
     if subtype.startswith("PCM") and peak > 1.0:
         raise AudioFormatError(f"cannot write '{path}': peak {peak:.3f} exceeds full scale 1.0")

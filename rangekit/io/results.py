@@ -26,6 +26,11 @@ ARRIVAL_FIELDS = (
 )
 
 
+def _json_safe(row: dict) -> dict:
+    """Non-finite floats become None (JSON null): JSON has no NaN."""
+    return {k: (None if isinstance(v, float) and not np.isfinite(v) else v) for k, v in row.items()}
+
+
 def _fmt(v) -> str:
     if isinstance(v, float):
         return f"{v:.6f}" if abs(v) < 1e6 else f"{v:.6g}"
@@ -68,7 +73,7 @@ def format_ranges(result: RangeResult, fmt: str, *, meta: dict | None = None) ->
     JSON: one object with the keys of ``meta``, ``speed_of_sound_m_s`` and a list
     ``ranges`` of objects with ``a``, ``b``, ``distance_m``, ``sigma_m``, ``flags``.
     """
-    rows = [r.as_dict() for r in result.ranges]
+    rows = [_json_safe(r.as_dict()) for r in result.ranges]
     m = {**(meta or {}), "speed_of_sound_m_s": result.speed_m_s}
     if fmt == "table":
         for r in rows:
@@ -108,8 +113,5 @@ def format_arrivals(rows: list[dict], fmt: str, *, meta: dict | None = None) -> 
             for r in rows
         ]
     if fmt == "json":
-        rows = [
-            {k: (None if isinstance(v, float) and not np.isfinite(v) else v) for k, v in r.items()}
-            for r in rows
-        ]
+        rows = [_json_safe(r) for r in rows]
     return format_rows(rows, ARRIVAL_FIELDS, fmt, meta=meta, key="arrivals")

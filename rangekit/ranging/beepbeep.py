@@ -34,10 +34,15 @@ from rangekit import _validate as V
 from rangekit.errors import DetectionError, IncompatibleInputError
 from rangekit.types import Arrivals, Range, RangeResult
 
-__all__ = ["DEFAULT_CLOCK_PPM", "range_beepbeep", "self_distances"]
+__all__ = ["DEFAULT_CLOCK_PPM", "check_speed", "range_beepbeep", "self_distances"]
 
 #: Default 1-sigma sample-clock tolerance of a device, ppm.
 DEFAULT_CLOCK_PPM = 30.0
+
+
+def check_speed(speed_m_s: float) -> float:
+    """Validate a speed of sound in m/s (finite, within [100, 2000])."""
+    return V.in_range("speed_m_s", speed_m_s, 100.0, 2000.0)
 
 
 def self_distances(self_distance_m, n_devices: int) -> np.ndarray:
@@ -47,7 +52,7 @@ def self_distances(self_distance_m, n_devices: int) -> np.ndarray:
         raise IncompatibleInputError(
             f"{len(s)} self-distances given for {n_devices} devices: give one, or one per device"
         )
-    for v in s:
+    for v in s.tolist():
         V.positive("self_distance_m", v, allow_zero=True)
         if v > 2.0:
             raise V.InvalidParameterError(f"self_distance_m={v} m is implausibly large (> 2 m)")
@@ -102,9 +107,7 @@ def range_beepbeep(
     n = len(arrivals)
     if n < 2:
         raise IncompatibleInputError(f"two-way ranging needs at least 2 devices, got {n}")
-    c = V.positive("speed_m_s", speed_m_s)
-    if not 100.0 <= c <= 2000.0:
-        raise V.InvalidParameterError(f"speed_m_s={c} is outside [100, 2000] m/s")
+    c = check_speed(speed_m_s)
     s = self_distances(self_distance_m, n)
     e = V.in_range("clock_ppm", clock_ppm, 0.0, 1e4) * 1e-6
     for i, a in enumerate(arrivals):

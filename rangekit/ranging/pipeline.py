@@ -7,13 +7,19 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from rangekit import _validate as V
 from rangekit.detect import DETECTORS
 from rangekit.detect.changepoint import find_bursts, group_bursts
 from rangekit.detect.xcorr import detect_xcorr
 from rangekit.errors import DetectionError, InvalidParameterError
 from rangekit.io.audio import Channel, load_devices
 from rangekit.physics import DEFAULT_TEMP_C, speed_of_sound_m_s
-from rangekit.ranging.beepbeep import DEFAULT_CLOCK_PPM, range_beepbeep
+from rangekit.ranging.beepbeep import (
+    DEFAULT_CLOCK_PPM,
+    check_speed,
+    range_beepbeep,
+    self_distances,
+)
 from rangekit.signals.beep import Beep, check_beep_fits
 from rangekit.types import Arrivals, RangeResult
 
@@ -46,13 +52,15 @@ def detect_channel(
     if detector == "changepoint":
         cand = find_bursts(ch.x, fs=ch.fs, beep=beep)
         arr = group_bursts(cand, fs=ch.fs, beep=beep)
-        hint = _spacing_hint(cand.onset, beep=beep, fs=ch.fs)
     elif detector == "xcorr":
         arr = detect_xcorr(ch.x, fs=ch.fs, beep=beep, max_beeps=expected)
-        hint = ""
+        cand = None
     else:
         raise InvalidParameterError(f"detector={detector!r} must be one of {', '.join(DETECTORS)}")
     if expected is not None and len(arr) < expected:
+        if cand is None:
+            cand = find_bursts(ch.x, fs=ch.fs, beep=beep)
+        hint = _spacing_hint(cand.onset, beep=beep, fs=ch.fs)
         found = "no beep" if len(arr) == 0 else f"{len(arr)} beep(s)"
         raise DetectionError(
             f"'{ch.source}': found {found} but expected {expected} (one per device){hint}"
@@ -95,9 +103,21 @@ def range_channels(
         1-sigma sample-clock tolerance per device, ppm (uncertainty only).
     """
     beep = Beep() if beep is None else beep
-    c = speed_of_sound_m_s(temp_c) if speed_m_s is None else float(speed_m_s)
     n = len(channels)
-    arrivals = [detect_channel(ch, beep=beep, detector=detector, expected=n) for ch in channels]
+    # Every parameter is checked before the (slower) detection.
+    c = speed_of_sound_m_s(temp_c) if speed_m_s is None else check_speed(speed_m_s)
+    self_distances(self_distance_m, n)
+    V.in_range("clock_ppm", clock_ppm, 0.0, 1e4)
+    if detector not in DETECTORS:
+        raise InvalidParameterError(f"detector={detector!r} must be one of {', '.join(DETECTORS)}")
+    arrivals, errors = [], []
+    for ch in channels:
+        try:
+            arrivals.append(detect_channel(ch, beep=beep, detector=detector, expected=n))
+        except DetectionError as e:
+            errors.append(str(e))
+    if errors:
+        raise DetectionError("; ".join(errors))
     return range_beepbeep(
         arrivals, speed_m_s=c, self_distance_m=self_distance_m, clock_ppm=clock_ppm
     )

@@ -201,6 +201,8 @@ def render_beepbeep(
     for i, d in enumerate(devices):
         check_beep_fits(beep, fs=d.fs, what=f"device {i}")
     c = speed_of_sound_m_s(temp_c)
+    if snr_db is not None:
+        snr_db = V.in_range("snr_db", snr_db, -60.0, 200.0)
     rng = np.random.default_rng(rng)
     gaps = np.broadcast_to(np.asarray(gap_s, dtype=np.float64), (n_dev - 1,))
     if np.any(gaps < 0):
