@@ -60,6 +60,28 @@ def make_beep(kw: dict, *, amplitude: float | None = None):
     return Beep(**args)
 
 
+def detector_option(f):
+    """--detector changepoint|xcorr."""
+    return click.option(
+        "--detector",
+        type=click.Choice(["changepoint", "xcorr"]),
+        default="changepoint",
+        show_default=True,
+        help="Arrival detector: STFT change point + edge fit, or the cross-correlation baseline.",
+    )(f)
+
+
+def output_option(f):
+    """-o/--output FILE: results go there (atomically) instead of stdout."""
+    return click.option(
+        "-o",
+        "--output",
+        type=click.Path(dir_okay=False),
+        default=None,
+        help="Write here instead of stdout.",
+    )(f)
+
+
 def format_option(f):
     return click.option(
         "--format",

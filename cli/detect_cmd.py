@@ -3,27 +3,23 @@
 from __future__ import annotations
 
 import click
-from rangekit_cli._options import beep_options, debug_option, emit, format_option, make_beep
+from rangekit_cli._options import (
+    beep_options,
+    debug_option,
+    detector_option,
+    emit,
+    format_option,
+    make_beep,
+    output_option,
+)
 
 
 @click.command("detect")
 @click.argument("files", nargs=-1, required=True, type=click.Path(dir_okay=True))
-@click.option(
-    "--detector",
-    type=click.Choice(["changepoint", "xcorr"]),
-    default="changepoint",
-    show_default=True,
-    help="Arrival detector.",
-)
+@detector_option
 @beep_options
 @format_option
-@click.option(
-    "-o",
-    "--output",
-    type=click.Path(dir_okay=False),
-    default=None,
-    help="Write here instead of stdout.",
-)
+@output_option
 @debug_option
 def detect_cmd(files, detector, fmt, output, **beep_kw):
     """Beep onsets in every channel of every FILE.

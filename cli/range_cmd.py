@@ -6,10 +6,12 @@ import click
 from rangekit_cli._options import (
     beep_options,
     debug_option,
+    detector_option,
     emit,
     float_list,
     format_option,
     make_beep,
+    output_option,
 )
 
 
@@ -54,22 +56,10 @@ from rangekit_cli._options import (
     show_default=True,
     help="1-sigma sample-clock tolerance per device, ppm (widens sigma_m only).",
 )
-@click.option(
-    "--detector",
-    type=click.Choice(["changepoint", "xcorr"]),
-    default="changepoint",
-    show_default=True,
-    help="Arrival detector: STFT change point + edge fit, or the cross-correlation baseline.",
-)
+@detector_option
 @beep_options
 @format_option
-@click.option(
-    "-o",
-    "--output",
-    type=click.Path(dir_okay=False),
-    default=None,
-    help="Write here instead of stdout.",
-)
+@output_option
 @debug_option
 def range_cmd(
     files, scheme, self_distance, temp_c, speed, clock_ppm, detector, fmt, output, **beep_kw
