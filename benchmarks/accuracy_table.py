@@ -30,7 +30,7 @@ def main() -> None:
     ap.add_argument("--markdown", action="store_true", help="print a Markdown table")
     args = ap.parse_args()
     room = ShoeboxRoom((6.0, 5.0, 3.0), absorption=0.3, max_order=1)
-    cols = "detector | condition | SNR dB | median cm | p90 cm | max cm | failures | |e|<=2σ"
+    cols = "detector | condition | SNR dB | median cm | p90 cm | max cm | failures | within 2σ"
     if args.markdown:
         print("| " + cols + " |")
         print("|" + "---|" * (cols.count("|") + 1))

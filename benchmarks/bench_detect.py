@@ -13,12 +13,13 @@ cache load, FFT planning):
 * ``detect_changepoint`` float64: one call on the whole array.
 * ``detect_changepoint`` float32: the same array as float32 (accepted; the detector
   converts it to a float64 copy on entry, ``rangekit._validate.signal_1d``).
-* ``detect_xcorr``: the FFT matched-filter baseline on the whole array (~2.2 GB peak
+* ``detect_xcorr``: the FFT matched-filter baseline on the whole array (~2.2-2.4 GB peak
   memory for 10 min).  If a 60 s trial projects to more than 60 s or more than half of
   the available memory, it is run on 60 s and scaled, and the row says so.
-* stages of ``detect_changepoint`` (float64), timed separately with the library's own
-  functions in the order ``find_bursts`` calls them: band energy, change points, one
-  ``fit_edge`` per candidate burst, grouping.
+* stages of ``detect_changepoint`` (float64): band energy, change points, one
+  ``fit_edge`` per candidate burst, grouping, and the rest, timed inside one real call by
+  wrapping those functions in ``rangekit.detect.changepoint``'s namespace (fastest of
+  ``--repeats`` instrumented calls).
 * peer: ``scipy.signal.ShortTimeFFT(hann(128, sym=False), hop=32, mfft=128,
   scale_to=None)`` + ``|X|**2`` of the bin nearest 16 kHz (bin 46, 15848 Hz), in chunks
   of 60 s of whole frames (a 10-min STFT with 65 bins would be ~0.9 GB of complex128);

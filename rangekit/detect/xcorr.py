@@ -1,7 +1,9 @@
 """Cross-correlation beep detector: the BeepBeep baseline (Peng et al. 2007).
 
-The recording is correlated with the analytic beep template ``env(t) exp(j 2 pi f t)``
-(the whole burst train) by FFT; the magnitude is the matched-filter envelope. Beeps are
+The recording is correlated with the analytic burst template ``env(t) exp(j 2 pi f t)`` by
+FFT; the magnitudes at the burst places (k * spacing) are summed into the beep envelope
+(coherent within a burst, non-coherent across bursts, so that a clock-rate difference
+between player and recorder cannot make the bursts cancel). Beeps are
 its peaks above ``threshold_db`` over the median envelope, taken greedily from the
 strongest with suppression of +-(beep duration) around each (which also removes the
 side lobes at +-k*spacing that a burst train's correlation has). The peak is refined by a
@@ -77,17 +79,24 @@ def detect_xcorr(
     fs = V.sample_rate(fs)
     x = V.signal_1d("x", x)
     check_beep_fits(beep, fs=fs)
-    tmpl = beep_continuous_analytic(np.arange(int(math.ceil(beep.duration_s * fs))) / fs, beep=beep)
-    n = len(x) + len(tmpl)
-    nfft = sfft.next_fast_len(n)
-    r = sfft.ifft(sfft.fft(x, nfft) * np.conj(sfft.fft(tmpl, nfft)))[: len(x)]
-    env = np.abs(r)
     k_b = beep.n_bursts
-    if len(x) < len(tmpl) or not np.any(env > 0):
+    n_tmpl = int(math.ceil(beep.duration_s * fs))
+    one = beep_continuous_analytic(np.arange(int(math.ceil(beep.burst_s * fs))) / fs, beep=beep)
+    nfft = sfft.next_fast_len(len(x) + len(one))
+    e1 = np.abs(sfft.ifft(sfft.fft(x, nfft) * np.conj(sfft.fft(one, nfft)))[: len(x)])
+    # Bursts are summed non-coherently: a clock-rate difference of 100 ppm between player
+    # and recorder turns the carrier phase by ~3 rad over three spacings, which would make
+    # a coherent whole-beep correlation cancel at the true lag.
+    env = np.zeros(len(x))
+    for k in range(k_b):
+        sh = int(round(k * beep.spacing_s * fs))
+        if sh < len(x):
+            env[: len(x) - sh] += e1[sh:]
+    if len(x) < n_tmpl or not np.any(env > 0):
         return Arrivals.empty(fs=fs, n_bursts=k_b, detector="xcorr")
     noise = float(np.median(env))
     thr = noise * 10 ** (threshold_db / 20)
-    excl = len(tmpl)
+    excl = n_tmpl
     work = env.copy()
     peaks = []
     while True:
@@ -98,7 +107,7 @@ def detect_xcorr(
         work[max(0, i - excl) : i + excl + 1] = 0.0
     peaks.sort()
     onset, sigma, snr = [], [], []
-    tmpl_energy = float(np.sum(np.abs(tmpl) ** 2))
+    tmpl_energy = k_b * float(np.sum(np.abs(one) ** 2))
     for i in peaks:
         if 0 < i < len(env) - 1:
             y0, y1, y2 = env[i - 1], env[i], env[i + 1]
