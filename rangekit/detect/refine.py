@@ -22,7 +22,8 @@ edge model in each window (explained energy per parameter over residual energy p
 of freedom) finds the edges; the onset is the *earliest* local maximum reaching
 ``first_path`` (0.1) times the largest, so that later reflections adding up in phase into a
 stronger edge do not win; (2) around that, the plain residual is minimised over
-continuous ``tau`` in a fixed window (golden-section search), which is unbiased at any
+continuous ``tau`` in a fixed window (a coarse grid, a fine grid, then a parabola; each
+grid one batched solve of the 2x2 (4x4) normal equations), which is unbiased at any
 amplitude.
 
 The optional background term models a tone already ringing at the beep frequency when the
@@ -40,8 +41,6 @@ import numpy as np
 from rangekit.signals.beep import Beep, burst_envelope
 
 __all__ = ["EdgeFit", "fit_edge"]
-
-_GOLDEN = (math.sqrt(5.0) - 1.0) / 2.0
 
 
 @dataclass(frozen=True)
@@ -71,6 +70,31 @@ def _first_peak(f: np.ndarray, frac: float, f_min: float) -> int:
     right = np.concatenate((f[:-1] >= f[1:], [True]))
     idx = np.flatnonzero(ok & left & right)
     return int(idx[0]) if len(idx) else int(np.argmax(f))
+
+
+def _residuals(
+    seg: np.ndarray,
+    n: np.ndarray,
+    taus: np.ndarray,
+    *,
+    w: float,
+    fs: float,
+    beep: Beep,
+    background: bool,
+) -> np.ndarray:
+    """Residual energy of the least-squares fit at each of ``taus`` (batched normal equations)."""
+    env = burst_envelope((n[None, :] - taus[:, None]) / fs, beep=beep)  # (T, L)
+    s, c = np.sin(w * n), np.cos(w * n)
+    cols = [env * s, env * c]
+    if background:
+        cols += [np.broadcast_to(s, env.shape), np.broadcast_to(c, env.shape)]
+    b = np.stack(cols, axis=2)  # (T, L, p)
+    gram = np.einsum("tlp,tlq->tpq", b, b)
+    g = np.einsum("tlp,l->tp", b, seg)
+    p = b.shape[2]
+    gram += np.eye(p) * (1e-12 * np.trace(gram, axis1=1, axis2=2)[:, None, None] / p + 1e-300)
+    coef = np.linalg.solve(gram, g[:, :, None])[:, :, 0]
+    return float(seg @ seg) - np.einsum("tp,tp->t", g, coef)
 
 
 def _residual(seg: np.ndarray, n: np.ndarray, tau: float, **kw) -> tuple[float, np.ndarray]:
@@ -167,24 +191,17 @@ def fit_edge(
     n = np.arange(i0, i1, dtype=np.float64)
     seg2 = x[i0:i1]
     kw2 = {**kw, "background": background}
+    # Coarse grid, then a fine grid between the coarse minimum's neighbours, then a
+    # parabola through the three lowest fine points; each grid is one batched solve.
     grid = np.linspace(a - h, a + h, 25)
-    res = [(_residual(seg2, n, t, **kw2)[0], t) for t in grid]
-    j = int(np.argmin([r for r, _ in res]))
-    left, right = grid[max(j - 1, 0)], grid[min(j + 1, len(grid) - 1)]
-    c1 = right - _GOLDEN * (right - left)
-    c2 = left + _GOLDEN * (right - left)
-    f1 = _residual(seg2, n, c1, **kw2)[0]
-    f2 = _residual(seg2, n, c2, **kw2)[0]
-    while right - left > 1e-3:
-        if f1 < f2:
-            right, c2, f2 = c2, c1, f1
-            c1 = right - _GOLDEN * (right - left)
-            f1 = _residual(seg2, n, c1, **kw2)[0]
-        else:
-            left, c1, f1 = c1, c2, f2
-            c2 = left + _GOLDEN * (right - left)
-            f2 = _residual(seg2, n, c2, **kw2)[0]
-    tau = 0.5 * (left + right)
+    j = int(np.argmin(_residuals(seg2, n, grid, **kw2)))
+    fine = np.linspace(grid[max(j - 1, 0)], grid[min(j + 1, len(grid) - 1)], 33)
+    rf = _residuals(seg2, n, fine, **kw2)
+    m = int(np.clip(np.argmin(rf), 1, len(fine) - 2))
+    y0, y1, y2 = rf[m - 1], rf[m], rf[m + 1]
+    den = y0 - 2.0 * y1 + y2
+    step = fine[1] - fine[0]
+    tau = float(fine[m] + (0.5 * (y0 - y2) / den * step if den > 0 else 0.0))
 
     # Uncertainty: Fisher information of tau with the linear amplitudes profiled out.
     rss, coef = _residual(seg2, n, tau, **kw2)
