@@ -169,7 +169,8 @@ def group_bursts(
         ks = np.array([k for k, j in enumerate(idx) if j >= 0])
         js = np.array([j for j in idx if j >= 0])
         est = cand.onset[js] - ks * spacing
-        sg = np.maximum(cand.sigma[js], 1e-3)
+        # A failed fit reports an infinite sigma; it then weighs (almost) nothing.
+        sg = np.clip(np.nan_to_num(cand.sigma[js], nan=1e6, posinf=1e6), 1e-3, 1e6)
         # Allowed scatter: timing noise, plus 200 ppm of clock-rate mismatch per spacing.
         allow = 2.0 * scale + 4.0 * sg + 2e-4 * ks * spacing
         # The centre is the weighted mean of the estimates that agree with the best-supported

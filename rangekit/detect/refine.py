@@ -201,7 +201,8 @@ def fit_edge(
     y0, y1, y2 = rf[m - 1], rf[m], rf[m + 1]
     den = y0 - 2.0 * y1 + y2
     step = fine[1] - fine[0]
-    tau = float(fine[m] + (0.5 * (y0 - y2) / den * step if den > 0 else 0.0))
+    vertex = float(np.clip(0.5 * (y0 - y2) / den, -1.0, 1.0)) if den > 0 else 0.0
+    tau = float(fine[m] + vertex * step)
 
     # Uncertainty: Fisher information of tau with the linear amplitudes profiled out.
     rss, coef = _residual(seg2, n, tau, **kw2)

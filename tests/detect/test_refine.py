@@ -49,3 +49,12 @@ def test_background_tone_is_absorbed_when_asked():
 def test_window_outside_signal_returns_none():
     x = np.zeros(100)
     assert fit_edge(x, fs=FS, beep=BEEP, lo=90, hi=99) is None
+
+
+def test_fit_is_never_outside_its_search_interval():
+    """Flat residuals (pure noise) must not throw the parabola vertex out of the bracket."""
+    rng = np.random.default_rng(5)
+    for _ in range(30):
+        x = rng.standard_normal(3000)
+        fit = fit_edge(x, fs=FS, beep=BEEP, lo=1000, hi=1200)
+        assert 990 <= fit.onset <= 1210
