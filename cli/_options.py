@@ -10,6 +10,16 @@ import click
 FORMATS = ("table", "json", "csv")
 
 
+class FiniteRange(click.FloatRange):
+    """click.FloatRange that also refuses NaN (which compares false to every bound)."""
+
+    def convert(self, value, param, ctx):
+        v = super().convert(value, param, ctx)
+        if not math.isfinite(v):
+            self.fail(f"{v} is not a finite number", param, ctx)
+        return v
+
+
 def beep_options(f):
     """--freq/--bursts/--spacing/--burst-len/--taper/--beep-fs: the beep that was played."""
     opts = [

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import click
 from rangekit_cli._options import (
+    FiniteRange,
     beep_options,
     debug_option,
     detector_option,
@@ -35,7 +36,7 @@ from rangekit_cli._options import (
 @click.option(
     "--temperature",
     "temp_c",
-    type=click.FloatRange(-60.0, 60.0),
+    type=FiniteRange(-60.0, 60.0),
     default=20.0,
     show_default=True,
     help="Air temperature, C.",
@@ -43,7 +44,7 @@ from rangekit_cli._options import (
 @click.option(
     "--speed-of-sound",
     "speed",
-    type=click.FloatRange(100.0, 2000.0),
+    type=FiniteRange(100.0, 2000.0),
     default=None,
     metavar="MPS",
     help="Speed of sound in m/s (overrides --temperature).",
@@ -51,7 +52,7 @@ from rangekit_cli._options import (
 @click.option(
     "--clock-ppm",
     "clock_ppm",
-    type=click.FloatRange(0.0, 1e4),
+    type=FiniteRange(0.0, 1e4),
     default=30.0,
     show_default=True,
     help="1-sigma sample-clock tolerance per device, ppm (widens sigma_m only).",
