@@ -60,8 +60,7 @@ os.environ.setdefault("MKL_NUM_THREADS", "1")
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 import numpy as np
-from scipy.signal import ShortTimeFFT
-from scipy.signal.windows import hann
+from _stft_peer import stft_band_energy
 
 import rangekit.detect.changepoint as cp
 import rangekit.detect.refine as refine
@@ -127,23 +126,11 @@ def best_time(fn, repeats: int):
 
 
 def stft_peer(x: np.ndarray) -> np.ndarray:
-    """Band energy at bin 46 by ShortTimeFFT (mfft=128), in ~60 s chunks of whole frames.
-
-    ShortTimeFFT centres slice ``p`` on sample ``p * hop``; our frame ``m`` (window start
-    ``m * hop``) is slice ``p = m + (n_win // 2) // hop``.
-    """
-    sft = ShortTimeFFT(hann(N_WIN, sym=False), hop=HOP, fs=FS, mfft=N_WIN, scale_to=None)
-    q = round(16000.0 / sft.delta_f)
-    p_off = sft.m_num_mid // HOP
-    n_frames = (x.size - N_WIN) // HOP + 1
-    chunk_frames = int(CHUNK_S * FS) // HOP
-    out = np.empty(n_frames)
-    for m0 in range(0, n_frames, chunk_frames):
-        nf = min(chunk_frames, n_frames - m0)
-        seg = x[m0 * HOP : (m0 + nf - 1) * HOP + N_WIN]
-        xs = sft.stft(seg, p0=p_off, p1=p_off + nf)[q]
-        out[m0 : m0 + nf] = xs.real**2 + xs.imag**2
-    return out
+    """Band energy at the bin nearest 16 kHz by ShortTimeFFT (mfft=128), in ~60 s chunks."""
+    q = round(16000.0 / (FS / N_WIN))
+    return stft_band_energy(
+        x, fs=FS, n_win=N_WIN, hop=HOP, mfft=N_WIN, bins=slice(q, q + 1), chunk_s=CHUNK_S
+    )
 
 
 def stages(x: np.ndarray, beep: Beep) -> tuple[dict[str, float], int, float, object]:
