@@ -52,11 +52,9 @@ def speed_of_sound_m_s(temp_c: float = DEFAULT_TEMP_C) -> float:
 
 def delay_to_distance_m(delay_s, *, speed_m_s: float):
     """Distance travelled by sound in ``delay_s`` seconds (scalar or array)."""
-    return np.multiply(delay_s, speed_m_s) if not np.isscalar(delay_s) else delay_s * speed_m_s
+    return np.asarray(delay_s) * speed_m_s if np.ndim(delay_s) else delay_s * speed_m_s
 
 
 def distance_to_delay_s(distance_m, *, speed_m_s: float):
     """Propagation delay in seconds over ``distance_m`` metres (scalar or array)."""
-    if not np.isscalar(distance_m):
-        return np.divide(distance_m, speed_m_s)
-    return distance_m / speed_m_s
+    return np.asarray(distance_m) / speed_m_s if np.ndim(distance_m) else distance_m / speed_m_s

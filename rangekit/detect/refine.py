@@ -53,13 +53,20 @@ class EdgeFit:
     amplitude: float
 
 
-def _basis(n: np.ndarray, tau: float, *, w: float, fs: float, beep: Beep, background: bool):
-    env = burst_envelope((n - tau) / fs, beep=beep)
+def _basis_many(n: np.ndarray, taus, *, w: float, fs: float, beep: Beep, background: bool):
+    """Model columns for each onset in ``taus``: shape (T, L, 2) or (T, L, 4)."""
+    taus = np.atleast_1d(np.asarray(taus, dtype=np.float64))
+    env = burst_envelope((n[None, :] - taus[:, None]) / fs, beep=beep)  # (T, L)
     s, c = np.sin(w * n), np.cos(w * n)
     cols = [env * s, env * c]
     if background:
-        cols += [s, c]
-    return np.stack(cols, axis=1)
+        cols += [np.broadcast_to(s, env.shape), np.broadcast_to(c, env.shape)]
+    return np.stack(cols, axis=2)
+
+
+def _basis(n: np.ndarray, tau: float, **kw) -> np.ndarray:
+    """Model columns for one onset: shape (L, 2) or (L, 4)."""
+    return _basis_many(n, tau, **kw)[0]
 
 
 def _first_peak(f: np.ndarray, frac: float, f_min: float) -> int:
@@ -72,36 +79,18 @@ def _first_peak(f: np.ndarray, frac: float, f_min: float) -> int:
     return int(idx[0]) if len(idx) else int(np.argmax(f))
 
 
-def _residuals(
-    seg: np.ndarray,
-    n: np.ndarray,
-    taus: np.ndarray,
-    *,
-    w: float,
-    fs: float,
-    beep: Beep,
-    background: bool,
-) -> np.ndarray:
-    """Residual energy of the least-squares fit at each of ``taus`` (batched normal equations)."""
-    env = burst_envelope((n[None, :] - taus[:, None]) / fs, beep=beep)  # (T, L)
-    s, c = np.sin(w * n), np.cos(w * n)
-    cols = [env * s, env * c]
-    if background:
-        cols += [np.broadcast_to(s, env.shape), np.broadcast_to(c, env.shape)]
-    b = np.stack(cols, axis=2)  # (T, L, p)
+def _fits(seg: np.ndarray, n: np.ndarray, taus, **kw) -> tuple[np.ndarray, np.ndarray]:
+    """Least-squares fit at each of ``taus`` (batched normal equations).
+
+    Returns the residual energies (T,) and the amplitude coefficients (T, p).
+    """
+    b = _basis_many(n, taus, **kw)  # (T, L, p)
     gram = np.einsum("tlp,tlq->tpq", b, b)
     g = np.einsum("tlp,l->tp", b, seg)
     p = b.shape[2]
     gram += np.eye(p) * (1e-12 * np.trace(gram, axis1=1, axis2=2)[:, None, None] / p + 1e-300)
     coef = np.linalg.solve(gram, g[:, :, None])[:, :, 0]
-    return float(seg @ seg) - np.einsum("tp,tp->t", g, coef)
-
-
-def _residual(seg: np.ndarray, n: np.ndarray, tau: float, **kw) -> tuple[float, np.ndarray]:
-    b = _basis(n, tau, **kw)
-    coef, *_ = np.linalg.lstsq(b, seg, rcond=None)
-    r = seg - b @ coef
-    return float(r @ r), coef
+    return float(seg @ seg) - np.einsum("tp,tp->t", g, coef), coef
 
 
 def fit_edge(
@@ -194,9 +183,9 @@ def fit_edge(
     # Coarse grid, then a fine grid between the coarse minimum's neighbours, then a
     # parabola through the three lowest fine points; each grid is one batched solve.
     grid = np.linspace(a - h, a + h, 25)
-    j = int(np.argmin(_residuals(seg2, n, grid, **kw2)))
+    j = int(np.argmin(_fits(seg2, n, grid, **kw2)[0]))
     fine = np.linspace(grid[max(j - 1, 0)], grid[min(j + 1, len(grid) - 1)], 33)
-    rf = _residuals(seg2, n, fine, **kw2)
+    rf = _fits(seg2, n, fine, **kw2)[0]
     m = int(np.clip(np.argmin(rf), 1, len(fine) - 2))
     y0, y1, y2 = rf[m - 1], rf[m], rf[m + 1]
     den = y0 - 2.0 * y1 + y2
@@ -205,7 +194,8 @@ def fit_edge(
     tau = float(fine[m] + vertex * step)
 
     # Uncertainty: Fisher information of tau with the linear amplitudes profiled out.
-    rss, coef = _residual(seg2, n, tau, **kw2)
+    rss_t, coef_t = _fits(seg2, n, tau, **kw2)
+    rss, coef = max(float(rss_t[0]), 0.0), coef_t[0]
     b = _basis(n, tau, **kw2)
     eps = 1e-3
     dm = (_basis(n, tau + eps, **kw2) - _basis(n, tau - eps, **kw2)) @ coef / (2 * eps)

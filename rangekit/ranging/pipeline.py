@@ -8,9 +8,8 @@ from collections.abc import Sequence
 import numpy as np
 
 from rangekit import _validate as V
-from rangekit.detect import DETECTORS
-from rangekit.detect.changepoint import find_bursts, group_bursts
-from rangekit.detect.xcorr import detect_xcorr
+from rangekit.detect import DETECTORS, detect
+from rangekit.detect.changepoint import find_bursts
 from rangekit.errors import DetectionError, InvalidParameterError
 from rangekit.io.audio import Channel, load_devices
 from rangekit.physics import DEFAULT_TEMP_C, speed_of_sound_m_s
@@ -49,17 +48,11 @@ def detect_channel(
 ) -> Arrivals:
     """Detect the beeps in one device's recording; explain in the error when too few are found."""
     check_beep_fits(beep, fs=ch.fs, what=f"'{ch.source}'")
-    if detector == "changepoint":
-        cand = find_bursts(ch.x, fs=ch.fs, beep=beep)
-        arr = group_bursts(cand, fs=ch.fs, beep=beep)
-    elif detector == "xcorr":
-        arr = detect_xcorr(ch.x, fs=ch.fs, beep=beep, max_beeps=expected)
-        cand = None
-    else:
-        raise InvalidParameterError(f"detector={detector!r} must be one of {', '.join(DETECTORS)}")
+    kw = {"max_beeps": expected} if detector == "xcorr" else {}
+    arr = detect(ch.x, fs=ch.fs, beep=beep, detector=detector, **kw)
     if expected is not None and len(arr) < expected:
-        if cand is None:
-            cand = find_bursts(ch.x, fs=ch.fs, beep=beep)
+        # Only on failure: the individual bursts tell whether their spacing is the problem.
+        cand = find_bursts(ch.x, fs=ch.fs, beep=beep)
         hint = _spacing_hint(cand.onset, beep=beep, fs=ch.fs)
         found = "no beep" if len(arr) == 0 else f"{len(arr)} beep(s)"
         raise DetectionError(

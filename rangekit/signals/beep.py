@@ -166,16 +166,12 @@ def burst_envelope(t_s: np.ndarray, *, beep: Beep) -> np.ndarray:
 
 
 def beep_continuous(t_s: np.ndarray, *, beep: Beep) -> np.ndarray:
-    """The beep as a continuous-time signal at times ``t_s`` seconds from its start."""
-    t = np.asarray(t_s, dtype=np.float64)
-    out = np.zeros_like(t)
-    w = 2.0 * math.pi * beep.f_hz
-    for k in range(beep.n_bursts):
-        tk = t - k * beep.spacing_s
-        m = (tk >= 0.0) & (tk <= beep.burst_s)
-        if np.any(m):
-            out[m] += burst_envelope(tk[m], beep=beep) * np.sin(w * tk[m])
-    return beep.amplitude * out
+    """The beep as a continuous-time signal at times ``t_s`` seconds from its start.
+
+    ``amplitude * env(t) * sin(2 pi f t)`` per burst: the scaled imaginary part of
+    :func:`beep_continuous_analytic`.
+    """
+    return beep.amplitude * beep_continuous_analytic(t_s, beep=beep).imag
 
 
 def beep_continuous_analytic(t_s: np.ndarray, *, beep: Beep) -> np.ndarray:
