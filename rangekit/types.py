@@ -39,6 +39,9 @@ class Arrivals:
         Onset of each burst in samples; NaN where a burst was missing or rejected.
     detector : str
         Name of the detector that produced the arrivals.
+    window : ndarray of int, shape (n,), optional
+        Index of the activation window each arrival was found in (matched-filter
+        detection of windowed one-way recordings); None when the channel is one window.
     """
 
     onset: np.ndarray
@@ -48,6 +51,7 @@ class Arrivals:
     confidence: np.ndarray
     burst_onsets: np.ndarray
     detector: str = ""
+    window: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         n = len(self.onset)
@@ -56,6 +60,8 @@ class Arrivals:
                 raise ValueError(f"Arrivals.{name} has {len(getattr(self, name))} entries, not {n}")
         if self.burst_onsets.shape[0] != n:
             raise ValueError("Arrivals.burst_onsets must have one row per onset")
+        if self.window is not None and len(self.window) != n:
+            raise ValueError("Arrivals.window must have one entry per onset")
 
     @classmethod
     def empty(cls, *, fs: float, n_bursts: int, detector: str = "") -> Arrivals:
@@ -87,6 +93,7 @@ class Arrivals:
             self.confidence[idx],
             self.burst_onsets[idx],
             self.detector,
+            None if self.window is None else self.window[idx],
         )
 
 

@@ -1,0 +1,354 @@
+"""Ultrasonic time-of-flight ranging: one-way (RF-synchronised beacons) and pulse-echo.
+
+**One-way** (Kim & Kim 2013 §II-A): the robot's RF message triggers a ceiling Tx, which
+fires its Barker-coded burst; each of the robot's receivers times the burst's arrival from
+the trigger. In a recording, sample 0 is the trigger (the emission instant); each channel is
+a receiver; a known system latency (trigger to drive start) is subtracted; distances are
+``c * (arrival - latency)`` with ``c = 20.05 sqrt(T + 273.16)`` m/s. A file may hold many
+consecutive activation windows at a known period (Kim & Kim fire the Txs in turn at
+5 Hz): window ``k`` starts at sample ``round(k * period * fs)``, and its time origin is
+there.
+
+**Pulse-echo** (SRF02, Girard 2011 §2.6): sample 0 is the ping; the earliest echo after
+the ring-down blanking (the minimum range, 15 cm) gives ``c * t / 2``; nothing within the
+maximum range (6 m) is "out of range" (distance None). A recording may hold many ranging
+cycles at a known period (70 ms for the SRF02).
+
+Both use the matched filter of :mod:`rangekit.detect.matched` with first-path selection.
+
+Examples
+--------
+>>> import numpy as np
+>>> from rangekit.detect.matched import coded_template
+>>> fs = 192000.0
+>>> h = coded_template(fs=fs)
+>>> x = np.zeros((1, 20000))
+>>> lag = 1000.0 / 343.0 * 1.0 * fs  # 1 m at 343 m/s... rounded below
+>>> x[0, 560 : 560 + len(h)] = h
+>>> rows = range_oneway(x, fs=fs, tx=None, rx=None, speed_m_s=343.0)
+>>> rows[0].channel, round(rows[0].distance_m, 4)
+(0, 1.0004)
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from rangekit import _validate as V
+from rangekit.detect.matched import (
+    DEFAULT_BLOCK,
+    DEFAULT_K_DETECT,
+    DEFAULT_K_NOISE,
+    DEFAULT_REL_THRESHOLD,
+    coded_template,
+    detect_matched,
+)
+from rangekit.errors import IncompatibleInputError, InvalidParameterError
+from rangekit.physics import DEFAULT_TEMP_C, speed_of_sound_m_s
+from rangekit.signals.barker import CodedBurst, check_burst_fits, srf02_ping
+from rangekit.signals.transducer import Transducer
+
+__all__ = [
+    "SRF02_CYCLE_S",
+    "SRF02_MAX_RANGE_M",
+    "SRF02_MIN_RANGE_M",
+    "ToF",
+    "range_echo",
+    "range_oneway",
+    "window_starts",
+]
+
+#: SRF02 ranging cycle (datasheet; Girard 2011 §2.6.5), s.
+SRF02_CYCLE_S = 0.070
+#: SRF02 minimum range (ring-down), m (Girard 2011 §2.6).
+SRF02_MIN_RANGE_M = 0.15
+#: SRF02 maximum range, m (Girard 2011 §2.6).
+SRF02_MAX_RANGE_M = 6.0
+
+_DEFAULT_TX = Transducer()
+
+
+@dataclass(frozen=True)
+class ToF:
+    """One time-of-flight range.
+
+    Attributes
+    ----------
+    window : int
+        Activation window (one-way) or ranging cycle (echo), from 0.
+    tx : int or None
+        Transmitter id of the window (one-way with a firing order), else None.
+    channel : int
+        Receiver (channel of the recording), from 0.
+    distance_m : float
+        Distance in metres; NaN when nothing was detected (out of range).
+    sigma_m : float
+        1-sigma of the distance from the detection SNR (Cramér–Rao), metres; NaN if none.
+    snr_db : float
+        Matched-filter output SNR ``10 log10(2 E / N0)``; NaN if none.
+    arrival_s : float
+        Arrival time from the window's start (latency included), seconds; NaN if none.
+    """
+
+    window: int
+    tx: int | None
+    channel: int
+    distance_m: float
+    sigma_m: float
+    snr_db: float
+    arrival_s: float
+
+    def as_dict(self) -> dict:
+        """Plain-JSON form; NaN becomes None (null)."""
+
+        def f(v: float) -> float | None:
+            return None if not math.isfinite(v) else float(v)
+
+        return {
+            "window": self.window,
+            "tx": self.tx,
+            "channel": self.channel,
+            "distance_m": f(self.distance_m),
+            "sigma_m": f(self.sigma_m),
+            "snr_db": f(self.snr_db),
+            "arrival_s": f(self.arrival_s),
+        }
+
+
+def window_starts(n_samples: int, *, fs: float, period_s: float | None) -> np.ndarray:
+    """``[start, stop)`` sample ranges of consecutive windows of ``period_s`` (one if None).
+
+    A last window shorter than half a period is dropped (an activation cut off by the end
+    of the recording).
+
+    Examples
+    --------
+    >>> window_starts(1000, fs=100.0, period_s=2.5).tolist()
+    [[0, 250], [250, 500], [500, 750], [750, 1000]]
+    >>> window_starts(1000, fs=100.0, period_s=None).tolist()
+    [[0, 1000]]
+    """
+    if period_s is None:
+        return np.array([[0, n_samples]], dtype=np.int64)
+    period_s = V.positive("period_s", period_s)
+    per = period_s * fs
+    if per < 2:
+        raise InvalidParameterError(f"period_s={period_s!r} is shorter than two samples")
+    k = np.arange(int(math.floor(n_samples / per + 0.5)) + 1)
+    starts = np.round(k * per).astype(np.int64)
+    starts = starts[starts < n_samples]
+    stops = np.minimum(np.append(starts[1:], n_samples), n_samples)
+    keep = (stops - starts) >= 0.5 * per
+    return np.stack([starts[keep], stops[keep]], axis=1)
+
+
+def _as_channels(x: np.ndarray) -> np.ndarray:
+    a = np.asarray(x, dtype=np.float64)
+    if a.ndim == 1:
+        a = a[None, :]
+    if a.ndim != 2 or a.shape[1] < 2:
+        raise InvalidParameterError(f"x must be (channels, samples), got shape {a.shape}")
+    return a
+
+
+def _ranges(
+    x: np.ndarray,
+    *,
+    fs: float,
+    template: np.ndarray,
+    windows: np.ndarray,
+    lo_s: float,
+    hi_s: float,
+    offset_s: float,
+    scale: float,
+    c: float,
+    tx_ids: Sequence[int] | None,
+    thresholds: dict,
+    block: int,
+) -> list[ToF]:
+    """Shared core: per channel, per window first paths -> distances ``scale*c*(t - off)``."""
+    lo = max(0, int(math.floor(lo_s * fs)) - 1)
+    hi = int(math.ceil(hi_s * fs)) + 2
+    rows: list[ToF] = []
+    for ch in range(x.shape[0]):
+        arr = detect_matched(
+            x[ch],
+            fs=fs,
+            template=template,
+            windows=windows,
+            search=(lo, hi),
+            block=block,
+            **thresholds,
+        )
+        found = dict(zip(arr.window.tolist(), range(len(arr)), strict=True))
+        for w, (s0, _) in enumerate(windows):
+            tx = None if tx_ids is None else int(tx_ids[w % len(tx_ids)])
+            i = found.get(w)
+            if i is None:
+                rows.append(ToF(w, tx, ch, math.nan, math.nan, math.nan, math.nan))
+                continue
+            t = (arr.onset[i] - s0) / fs
+            d = scale * c * (t - offset_s)
+            sig = scale * c * arr.sigma[i] / fs
+            rows.append(ToF(w, tx, ch, float(d), float(sig), float(arr.snr_db[i]), float(t)))
+    rows.sort(key=lambda r: (r.window, r.channel))
+    return rows
+
+
+def _speed(temp_c: float, speed_m_s: float | None) -> float:
+    if speed_m_s is None:
+        return speed_of_sound_m_s(temp_c)
+    return V.in_range("speed_m_s", speed_m_s, 100.0, 2000.0)
+
+
+def range_oneway(
+    x: np.ndarray,
+    *,
+    fs: float,
+    burst: CodedBurst | None = None,
+    tx: Transducer | None = _DEFAULT_TX,
+    rx: Transducer | None = _DEFAULT_TX,
+    latency_s: float = 0.0,
+    temp_c: float = DEFAULT_TEMP_C,
+    speed_m_s: float | None = None,
+    period_s: float | None = None,
+    tx_ids: Sequence[int] | None = None,
+    min_range_m: float = 0.0,
+    max_range_m: float = 15.0,
+    k_noise: float = DEFAULT_K_NOISE,
+    k_detect: float = DEFAULT_K_DETECT,
+    rel_threshold: float = DEFAULT_REL_THRESHOLD,
+    block: int = DEFAULT_BLOCK,
+) -> list[ToF]:
+    """One-way (RF-synchronised) ranges from a recording whose sample 0 is the trigger.
+
+    Parameters
+    ----------
+    x : ndarray, shape (channels, samples) or (samples,)
+        The recording; each channel is one receiver.
+    fs : float
+        Sample rate in Hz; must carry the burst's band (``CodedBurst.band_hz``).
+    burst : CodedBurst, optional
+        The emitted code (default Barker-7, 40 kHz, 3 cycles per bit; Kim & Kim 2013).
+    tx, rx : Transducer or None
+        Transducer responses folded into the template (default Q = 4 each, as the
+        simulator uses). None leaves one out.
+    latency_s : float
+        Known system latency from the trigger to the drive's start, subtracted (>= 0).
+    temp_c, speed_m_s : float
+        Air temperature (sets ``c = 20.05 sqrt(T + 273.16)``), or the speed of sound.
+    period_s : float, optional
+        Activation period: the file holds consecutive windows of this length (e.g. 0.2 s
+        for Kim & Kim's 5 Hz). Default: the whole file is one window.
+    tx_ids : sequence of int, optional
+        Firing order of the transmitters; window ``k`` is ``tx_ids[k % len(tx_ids)]``.
+    min_range_m, max_range_m : float
+        Distances the search considers (default 0-15 m).
+    k_noise, k_detect, rel_threshold : float
+        Detection thresholds (:func:`rangekit.detect.matched.first_path`).
+    block : int
+        Overlap-save FFT size.
+
+    Returns
+    -------
+    list of ToF
+        One entry per (window, channel), sorted; ``distance_m`` NaN where nothing was found.
+    """
+    fs = V.sample_rate(fs)
+    burst = CodedBurst() if burst is None else burst
+    check_burst_fits(burst, fs=fs)
+    x = _as_channels(x)
+    latency_s = V.positive("latency_s", latency_s, allow_zero=True)
+    c = _speed(temp_c, speed_m_s)
+    min_range_m = V.positive("min_range_m", min_range_m, allow_zero=True)
+    max_range_m = V.positive("max_range_m", max_range_m)
+    if max_range_m <= min_range_m:
+        raise InvalidParameterError(
+            f"max_range_m={max_range_m!r} must exceed min_range_m={min_range_m!r}"
+        )
+    if tx_ids is not None and len(tx_ids) == 0:
+        raise InvalidParameterError("tx_ids must not be empty")
+    windows = window_starts(x.shape[1], fs=fs, period_s=period_s)
+    template = coded_template(burst, fs=fs, tx=tx, rx=rx)
+    return _ranges(
+        x,
+        fs=fs,
+        template=template,
+        windows=windows,
+        lo_s=latency_s + min_range_m / c,
+        hi_s=latency_s + max_range_m / c,
+        offset_s=latency_s,
+        scale=1.0,
+        c=c,
+        tx_ids=tx_ids,
+        thresholds={"k_noise": k_noise, "k_detect": k_detect, "rel_threshold": rel_threshold},
+        block=block,
+    )
+
+
+def range_echo(
+    x: np.ndarray,
+    *,
+    fs: float,
+    burst: CodedBurst | None = None,
+    transducer: Transducer | None = _DEFAULT_TX,
+    temp_c: float = DEFAULT_TEMP_C,
+    speed_m_s: float | None = None,
+    period_s: float | None = None,
+    min_range_m: float = SRF02_MIN_RANGE_M,
+    max_range_m: float = SRF02_MAX_RANGE_M,
+    k_noise: float = DEFAULT_K_NOISE,
+    k_detect: float = DEFAULT_K_DETECT,
+    rel_threshold: float = DEFAULT_REL_THRESHOLD,
+    block: int = DEFAULT_BLOCK,
+) -> list[ToF]:
+    """Pulse-echo ranges (SRF02 style) from a recording whose sample 0 is the ping.
+
+    The template is the ping through the transducer twice (it sends and receives). Echoes
+    earlier than ``2 min_range_m / c`` fall in the ring-down and are not searched; nothing
+    before ``2 max_range_m / c`` means out of range (distance NaN, ``None`` in JSON).
+    ``period_s`` splits a log of many ranging cycles (0.07 s for the SRF02). Other
+    parameters as :func:`range_oneway`.
+    """
+    fs = V.sample_rate(fs)
+    burst = srf02_ping(fs=fs) if burst is None else burst
+    check_burst_fits(burst, fs=fs)
+    x = _as_channels(x)
+    c = _speed(temp_c, speed_m_s)
+    min_range_m = V.positive("min_range_m", min_range_m, allow_zero=True)
+    max_range_m = V.positive("max_range_m", max_range_m)
+    if max_range_m <= min_range_m:
+        raise InvalidParameterError(
+            f"max_range_m={max_range_m!r} must exceed min_range_m={min_range_m!r}"
+        )
+    windows = window_starts(x.shape[1], fs=fs, period_s=period_s)
+    if (windows[0, 1] - windows[0, 0]) / fs < 2.0 * min_range_m / c:
+        raise IncompatibleInputError(
+            f"recording of {x.shape[1]} samples is shorter than the ring-down blanking"
+        )
+    template = coded_template(burst, fs=fs, tx=transducer, rx=transducer)
+    rows = _ranges(
+        x,
+        fs=fs,
+        template=template,
+        windows=windows,
+        lo_s=2.0 * min_range_m / c,
+        hi_s=2.0 * max_range_m / c,
+        offset_s=0.0,
+        scale=0.5,
+        c=c,
+        tx_ids=None,
+        thresholds={"k_noise": k_noise, "k_detect": k_detect, "rel_threshold": rel_threshold},
+        block=block,
+    )
+    # Paths found at the very edges of the search are the blanking's or timeout's edge.
+    out = []
+    for r in rows:
+        if math.isfinite(r.distance_m) and not (min_range_m <= r.distance_m <= max_range_m):
+            r = ToF(r.window, r.tx, r.channel, math.nan, math.nan, math.nan, math.nan)
+        out.append(r)
+    return out
