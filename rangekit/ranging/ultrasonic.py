@@ -23,7 +23,6 @@ Examples
 >>> fs = 192000.0
 >>> h = coded_template(fs=fs)
 >>> x = np.zeros((1, 20000))
->>> lag = 1000.0 / 343.0 * 1.0 * fs  # 1 m at 343 m/s... rounded below
 >>> x[0, 560 : 560 + len(h)] = h
 >>> rows = range_oneway(x, fs=fs, tx=None, rx=None, speed_m_s=343.0)
 >>> rows[0].channel, round(rows[0].distance_m, 4)

@@ -189,7 +189,7 @@ def check_burst_fits(burst: CodedBurst, *, fs: float, what: str = "recording") -
     >>> check_burst_fits(CodedBurst(), fs=44100.0, what="'x.wav'")  # doctest: +ELLIPSIS
     Traceback (most recent call last):
     ...
-    rangekit.errors.IncompatibleInputError: 'x.wav' sample rate 44100 Hz is too low ... needs fs > 106667 Hz)
+    rangekit.errors.IncompatibleInputError: 'x.wav' sample rate 44100 Hz ... fs > 106667 Hz)
     """
     top = burst.band_hz[1]
     if top >= fs / 2:

@@ -21,7 +21,7 @@ Examples
 >>> sim.x.shape, sim.fs
 ((3, 9600), 192000.0)
 >>> [round(d, 4) for d in sim.truth["windows"][0]["distances_m"]]
-[2.1589, 2.2885, 2.2885]
+[2.1578, 2.2861, 2.2861]
 """
 
 from __future__ import annotations
