@@ -70,6 +70,112 @@ def make_beep(kw: dict, *, amplitude: float | None = None):
     return Beep(**args)
 
 
+def ultrasonic_options(f):
+    """Options of the ultrasonic schemes (oneway, echo) of ``rangekit range``."""
+    opts = [
+        click.option(
+            "--latency",
+            type=FiniteRange(0.0, 10.0),
+            default=None,
+            metavar="S",
+            help="oneway: system latency from the trigger to the drive, s, subtracted [0].",
+        ),
+        click.option(
+            "--period",
+            type=FiniteRange(1e-4, 3600.0),
+            default=None,
+            metavar="S",
+            help="oneway/echo: the file holds consecutive windows of this length, s "
+            "(0.2 for 5 Hz beacons, 0.07 for SRF02 cycles) [one window].",
+        ),
+        click.option(
+            "--tx-order",
+            "tx_order",
+            default=None,
+            metavar="ID[,ID...]",
+            help="oneway: transmitter id of each window, repeating [none].",
+        ),
+        click.option(
+            "--channels",
+            type=click.IntRange(1, 1024),
+            default=None,
+            help="Channel count every file must have [oneway: 3 receivers; echo: any].",
+        ),
+        click.option(
+            "--min-range",
+            "min_range",
+            type=FiniteRange(0.0, 1000.0),
+            default=None,
+            metavar="M",
+            help="Shortest distance searched, m [oneway 0; echo 0.15, the SRF02 ring-down].",
+        ),
+        click.option(
+            "--max-range",
+            "max_range",
+            type=FiniteRange(0.01, 1000.0),
+            default=None,
+            metavar="M",
+            help="Longest distance searched, m [oneway 15; echo 6, the SRF02's].",
+        ),
+        click.option(
+            "--q",
+            "q",
+            type=FiniteRange(0.0, 100.0),
+            default=None,
+            help="Q of the transducers folded into the template; 0 = bare drive [4].",
+        ),
+        click.option(
+            "--code",
+            default=None,
+            metavar="N|+-...",
+            help="Emitted code: a Barker length (2,3,4,5,7,11,13) or chips as + and - "
+            "[oneway: 7; echo: + (the SRF02 ping)].",
+        ),
+        click.option(
+            "--carrier", type=FiniteRange(1.0, 1e7), default=None, help="Carrier, Hz [40000]."
+        ),
+        click.option(
+            "--cycles-per-bit",
+            "cycles_per_bit",
+            type=click.IntRange(1, 1000),
+            default=None,
+            help="Carrier cycles per chip [oneway: 3; echo: 8].",
+        ),
+    ]
+    for o in reversed(opts):
+        f = o(f)
+    return f
+
+
+def make_burst(kw: dict, *, scheme: str):
+    """Build the CodedBurst of ``scheme`` from :func:`ultrasonic_options` values."""
+    from rangekit.signals.barker import BARKER_CODES, CodedBurst
+
+    code = kw.get("code")
+    echo = scheme == "echo"
+    if code is None:
+        chips = (1,) if echo else BARKER_CODES[7]
+    elif code.strip().isdigit():
+        n = int(code)
+        if n not in BARKER_CODES:
+            raise click.BadParameter(
+                f"no Barker code of length {n} (lengths: "
+                f"{', '.join(str(k) for k in BARKER_CODES)})",
+                param_hint="--code",
+            )
+        chips = BARKER_CODES[n]
+    elif code and set(code) <= {"+", "-"}:
+        chips = tuple(1 if ch == "+" else -1 for ch in code)
+    else:
+        raise click.BadParameter(
+            f"{code!r} must be a Barker length or a string of + and -", param_hint="--code"
+        )
+    cpb = kw.get("cycles_per_bit") or (8 if echo else 3)
+    carrier = kw.get("carrier") or 40000.0
+    # The rate is replaced by each file's; 10 MHz here only defers the Nyquist check.
+    return CodedBurst(chips, carrier, cpb, 0.9, 1e7)
+
+
 def detector_option(f):
     """--detector changepoint|xcorr."""
     return click.option(

@@ -5,7 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import click
-from rangekit_cli._options import beep_options, debug_option, float_list, make_beep
+from rangekit_cli._options import FiniteRange, beep_options, debug_option, float_list, make_beep
 
 
 @click.group("synth")
@@ -158,4 +158,199 @@ def synth_beepbeep(
     pairs = ", ".join(f"{p['a']}-{p['b']}: {p['distance_m']:.4f} m" for p in truth["pairs"])
     click.echo(
         f"wrote {', '.join(truth['files'])} and {out.with_suffix('.json').name} ({pairs})", err=True
+    )
+
+
+def _parse_pose(text: str, name: str = "--pose") -> list[float]:
+    v = float_list(text, name=name)
+    if v is None or len(v) != 3:
+        raise click.BadParameter(f"{text!r} must be X,Y,HEADING (m, m, degrees)", param_hint=name)
+    return v
+
+
+@synth.command("oneway")
+@click.option(
+    "--tx",
+    "txs",
+    multiple=True,
+    metavar="X,Y",
+    help="A ceiling transmitter's position in metres (repeat; fired in this order) "
+    "[six Txs on a 1.5 m grid around the origin].",
+)
+@click.option(
+    "--ceiling",
+    type=FiniteRange(0.1, 100.0),
+    default=2.011,
+    show_default=True,
+    help="Transmitter height z_T above the receivers' plane, m (Kim & Kim 2013 §V).",
+)
+@click.option(
+    "--pose",
+    default="0,0,0",
+    show_default=True,
+    metavar="X,Y,DEG",
+    help="Robot pose: position in metres, heading in degrees.",
+)
+@click.option(
+    "--radius",
+    type=FiniteRange(0.0, 10.0),
+    default=0.19,
+    show_default=True,
+    help="Receiver circle radius r_R, m (receivers at 0, 120, 240 degrees).",
+)
+@click.option(
+    "--windows",
+    "n_windows",
+    type=click.IntRange(1, 100000),
+    default=None,
+    help="Activation windows to render [one per Tx].",
+)
+@click.option(
+    "--period",
+    type=FiniteRange(0.001, 60.0),
+    default=0.2,
+    show_default=True,
+    help="Activation period, s (5 Hz).",
+)
+@click.option(
+    "--latency",
+    type=FiniteRange(0.0, 1.0),
+    default=0.0,
+    show_default=True,
+    help="Trigger-to-drive latency, s.",
+)
+@click.option(
+    "--snr-db",
+    type=FiniteRange(-60.0, 200.0),
+    default=20.0,
+    show_default=True,
+    help="In-band SNR of the weakest direct arrival, dB (band: the code's main lobe).",
+)
+@click.option("--no-noise", is_flag=True, help="Render without noise.")
+@click.option(
+    "--room", default=None, metavar="LX,LY,LZ", help="Shoebox room (reflections); positions inside."
+)
+@click.option(
+    "--absorption",
+    type=FiniteRange(0.0, 1.0),
+    default=0.3,
+    show_default=True,
+    help="Wall energy absorption.",
+)
+@click.option(
+    "--order",
+    type=click.IntRange(0, 6),
+    default=1,
+    show_default=True,
+    help="Image-source reflection order.",
+)
+@click.option(
+    "--reflection",
+    "reflections",
+    multiple=True,
+    metavar="DELAY_MS,GAIN",
+    help="An extra path for every arrival: DELAY_MS after the direct one, GAIN times it (repeat).",
+)
+@click.option(
+    "--temperature",
+    "temp_c",
+    type=FiniteRange(-60.0, 60.0),
+    default=20.0,
+    show_default=True,
+    help="Air temperature, C.",
+)
+@click.option(
+    "--q",
+    type=FiniteRange(0.5, 100.0),
+    default=4.0,
+    show_default=True,
+    help="Q of the Tx and Rx transducers.",
+)
+@click.option(
+    "--fs",
+    type=FiniteRange(1000.0, 1e7),
+    default=192000.0,
+    show_default=True,
+    help="Sample rate, Hz.",
+)
+@click.option("--seed", type=int, default=None, help="Random seed (noise).")
+@click.option(
+    "-o", "--output", type=click.Path(dir_okay=False), required=True, help="WAV file to write."
+)
+@debug_option
+def synth_oneway(
+    txs, ceiling, pose, radius, n_windows, period, latency, snr_db, no_noise, room, absorption,
+    order, reflections, temp_c, q, fs, seed, output,
+):  # fmt: skip
+    """Ceiling beacons fired in turn, heard by a robot's three receivers (Kim & Kim 2013).
+
+    Each activation window (--period) starts with the RF trigger; the window's Tx drives
+    a Barker-7 burst on 40 kHz --latency later. Writes OUTPUT (one channel per receiver,
+    16-bit PCM, sample 0 = the first trigger) and OUTPUT with suffix .json: the geometry,
+    each window's Tx and its true distance to every receiver.
+
+    \b
+    Examples:
+      rangekit synth oneway --tx 1,0.5 --tx -1,2 --pose 0.2,0.1,30 --seed 1 -o ow.wav
+      rangekit range --scheme oneway ow.wav --period 0.2
+    """
+    import math
+
+    import numpy as np
+
+    from rangekit.io.audio import write_audio
+    from rangekit.io.sidecar import write_json
+    from rangekit.signals.transducer import Transducer
+    from rangekit.sim import ShoeboxRoom
+    from rangekit.sim.ultrasonic import render_oneway
+
+    if txs:
+        pts = []
+        for t in txs:
+            v = float_list(t, name="--tx")
+            if len(v) != 2:
+                raise click.BadParameter(f"{t!r} must be X,Y in metres", param_hint="--tx")
+            pts.append([v[0], v[1], ceiling])
+    else:
+        pts = [[x, y, ceiling] for y in (-0.75, 0.75) for x in (-1.5, 0.0, 1.5)]
+    px, py, deg = _parse_pose(pose)
+    room_obj = None
+    if room is not None:
+        room_obj = ShoeboxRoom(tuple(_parse_point(room, "--room")), absorption, order)
+    extra = []
+    for r in reflections:
+        v = float_list(r, name="--reflection", lo=0.0)
+        if len(v) != 2 or v[0] <= 0:
+            raise click.BadParameter(
+                f"{r!r} must be DELAY_MS,GAIN (> 0)", param_hint="--reflection"
+            )
+        extra.append((v[0] * 1e-3, v[1]))
+    t = Transducer(q=q)
+    sim = render_oneway(
+        pts,
+        (px, py, math.radians(deg)),
+        fs=fs,
+        tx=t,
+        rx=t,
+        n_windows=n_windows,
+        period_s=period,
+        latency_s=latency,
+        temp_c=temp_c,
+        snr_db=None if no_noise else snr_db,
+        radius_m=radius,
+        room=room_obj,
+        extra_paths=extra,
+        rng=np.random.default_rng(seed),
+    )
+    out = Path(output)
+    x = sim.x / float(np.max(np.abs(sim.x))) * 0.5
+    write_audio(out, x.T, fs=fs)
+    truth = dict(sim.truth)
+    truth["seed"] = seed
+    truth["files"] = [out.name]
+    write_json(out.with_suffix(".json"), truth)
+    click.echo(
+        f"wrote {out.name} ({len(truth['windows'])} windows x {x.shape[0]} receivers) and "
+        f"{out.with_suffix('.json').name}",
+        err=True,
     )

@@ -55,9 +55,12 @@ __all__ = [
     "SRF02_CYCLE_S",
     "SRF02_MAX_RANGE_M",
     "SRF02_MIN_RANGE_M",
+    "ULTRASONIC_SCHEMES",
     "ToF",
+    "format_tof",
     "range_echo",
     "range_oneway",
+    "range_ultrasonic_files",
     "window_starts",
 ]
 
@@ -351,3 +354,94 @@ def range_echo(
             r = ToF(r.window, r.tx, r.channel, math.nan, math.nan, math.nan, math.nan)
         out.append(r)
     return out
+
+
+#: Ranging schemes of :func:`range_ultrasonic_files`.
+ULTRASONIC_SCHEMES = ("oneway", "echo")
+
+
+def range_ultrasonic_files(
+    paths: Sequence[str],
+    *,
+    scheme: str,
+    channels: int | None = None,
+    burst: CodedBurst | None = None,
+    **kw,
+) -> list[dict]:
+    """Ranges of every file, channel and window; rows for :func:`format_tof`.
+
+    Each file is ranged on its own (one-way: channel = receiver; echo: channel = sensor).
+
+    Parameters
+    ----------
+    paths : sequence of str
+        Audio files.
+    scheme : {"oneway", "echo"}
+        :func:`range_oneway` or :func:`range_echo`.
+    channels : int, optional
+        Channel count every file must have (e.g. 3 receivers); None accepts any.
+    burst : CodedBurst, optional
+        The emitted code (default per scheme: Barker-7 for oneway, the SRF02 ping for echo).
+    **kw
+        Passed to the scheme's function.
+
+    Raises
+    ------
+    IncompatibleInputError
+        A file's sample rate cannot carry the burst, or its channel count is wrong.
+    DetectionError
+        A file holds no burst at all (no channel, no window).
+    """
+    from rangekit.errors import DetectionError
+    from rangekit.io.audio import read_audio
+
+    if scheme not in ULTRASONIC_SCHEMES:
+        raise InvalidParameterError(
+            f"scheme={scheme!r} must be one of {', '.join(ULTRASONIC_SCHEMES)}"
+        )
+    if channels is not None:
+        channels = V.positive_int("channels", channels)
+    func = range_oneway if scheme == "oneway" else range_echo
+    rows: list[dict] = []
+    for p in paths:
+        x, fs = read_audio(p)
+        if channels is not None and x.shape[1] != channels:
+            raise IncompatibleInputError(
+                f"'{p}' has {x.shape[1]} channel(s) but {channels} are expected "
+                f"({'one per receiver' if scheme == 'oneway' else 'one per sensor'})"
+            )
+        b = (CodedBurst() if scheme == "oneway" else srf02_ping()) if burst is None else burst
+        check_burst_fits(b, fs=fs, what=f"'{p}'")
+        res = func(x.T, fs=fs, burst=b.with_fs(fs), **kw)
+        if scheme == "oneway" and not any(math.isfinite(r.distance_m) for r in res):
+            raise DetectionError(
+                f"'{p}': no burst found in any channel or window (is this a {scheme} recording "
+                "at the right --period and --latency?)"
+            )
+        for r in res:
+            d = r.as_dict()
+            if scheme == "echo":
+                d.pop("tx")
+            rows.append({"file": str(p), **d})
+    return rows
+
+
+def format_tof(rows: list[dict], fmt: str, *, scheme: str, meta: dict | None = None) -> str:
+    """Rows of :func:`range_ultrasonic_files` as a table, CSV or JSON (key ``ranges``)."""
+    from rangekit.io.results import format_rows
+
+    fields = ["file", "window"] + (["tx"] if scheme == "oneway" else [])
+    fields += ["channel", "distance_m", "sigma_m", "snr_db", "arrival_s"]
+    if fmt == "table":
+        out = []
+        for r in rows:
+            t = dict(r)
+            for k, nd in (("distance_m", 4), ("sigma_m", 5), ("snr_db", 1), ("arrival_s", 7)):
+                t[k] = "-" if r[k] is None else f"{r[k]:.{nd}f}"
+            if "tx" in t and t["tx"] is None:
+                t["tx"] = "-"
+            out.append(t)
+        return format_rows(out, fields, fmt, meta=meta, key="ranges")
+    if fmt == "csv":
+        rows = [{k: ("" if v is None else v) for k, v in r.items()} for r in rows]
+    return format_rows(rows, fields, fmt, meta=meta, key="ranges")
