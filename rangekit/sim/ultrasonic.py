@@ -1,4 +1,4 @@
-"""Simulated ultrasonic recordings: one-way Barker beacons (Kim & Kim 2013).
+"""Simulated ultrasonic recordings: one-way Barker beacons (Kim & Kim 2013) and SRF02 echoes.
 
 A robot carries ``n`` receivers on a circle of radius ``r_R`` (0.19 m, at 0°, 120°, 240°
 from its heading; Kim & Kim 2013 §II-B, §V); transmitters hang on the ceiling at height
@@ -41,7 +41,14 @@ from rangekit.sim._fracdelay import interp_bandlimited
 from rangekit.sim.noise import make_noise
 from rangekit.sim.room import ShoeboxRoom, image_sources
 
-__all__ = ["R_RECEIVER_M", "UltrasonicSim", "receiver_positions", "render_oneway"]
+__all__ = [
+    "R_RECEIVER_M",
+    "UltrasonicSim",
+    "receiver_positions",
+    "render_echo",
+    "render_oneway",
+    "specular_echoes",
+]
 
 #: Radius of Kim & Kim's receiver circle, m (§V).
 R_RECEIVER_M = 0.19
@@ -252,3 +259,178 @@ def render_oneway(
         "windows": windows,
     }
     return UltrasonicSim(x, fs, truth)
+
+
+def specular_echoes(
+    plan, pose, *, mount_angle_rad: float = 0.0, beam_width_rad: float | None = None
+):
+    """First-order specular wall echoes heard by a pulse-echo sensor at ``pose``.
+
+    A flat wall returns a ping to a co-located transmitter and receiver only from the foot
+    of the perpendicular (the image-source method in 2-D). For every solid wall segment
+    whose foot lies on the segment, in front of the sensor and not hidden by a nearer wall,
+    returns its distance ``d`` (m), off-axis angle ``psi`` (rad) and relative amplitude
+    ``D(psi)^2 / (2 d)`` (two-way beam pattern of
+    :func:`rangekit.sensors.srf02.beam_pattern`, spherical spreading over the path ``2 d``),
+    sorted by distance.
+
+    Examples
+    --------
+    >>> from rangekit.floorplan import FloorPlan
+    >>> plan = FloorPlan.from_walls([((2, -5), (2, 5)), ((-3, -5), (-3, 5))])
+    >>> d, psi, amp = specular_echoes(plan, (0.0, 0.0, 0.0))
+    >>> d.tolist(), psi.tolist(), amp.round(3).tolist()
+    ([2.0], [0.0], [0.25])
+    """
+    from rangekit.floorplan import cast_rays
+    from rangekit.sensors.srf02 import BEAM_WIDTH_RAD, beam_pattern
+
+    bw = BEAM_WIDTH_RAD if beam_width_rad is None else V.positive("beam_width_rad", beam_width_rad)
+    p = np.asarray(pose, dtype=np.float64)
+    if p.shape != (3,) or not np.all(np.isfinite(p)):
+        raise InvalidParameterError(f"pose={pose!r} must be (x, y, heading_rad), finite")
+    seg = np.asarray(plan.segments, dtype=np.float64)
+    if len(seg) == 0:
+        return np.zeros(0), np.zeros(0), np.zeros(0)
+    a, e = seg[:, :2], seg[:, 2:] - seg[:, :2]
+    u = ((p[:2] - a) @ np.eye(2) * e).sum(axis=1) / (e * e).sum(axis=1)
+    foot = a + u[:, None] * e
+    v = foot - p[:2]
+    d = np.hypot(v[:, 0], v[:, 1])
+    psi = np.angle(np.exp(1j * (np.arctan2(v[:, 1], v[:, 0]) - p[2] - mount_angle_rad)))
+    ok = (u >= 0.0) & (u <= 1.0) & (np.abs(psi) < 0.5 * math.pi) & (d > 1e-6)
+    idx = np.flatnonzero(ok)
+    if len(idx):
+        hits = cast_rays(plan, p[:2], np.arctan2(v[idx, 1], v[idx, 0]), d[idx] * (1 + 1e-9))
+        seen = ~(hits.distance_m < d[idx] - 1e-6)
+        idx = idx[seen]
+    order = idx[np.argsort(d[idx])]
+    amp = beam_pattern(psi[order], beam_width_rad=bw) ** 2 / (2.0 * d[order])
+    return d[order], psi[order], amp
+
+
+def render_echo(
+    plan,
+    poses,
+    *,
+    sensor=None,
+    mount_angle_rad: float = 0.0,
+    fs: float = 192000.0,
+    burst: CodedBurst | None = None,
+    transducer: Transducer | None = None,
+    temp_c: float = DEFAULT_TEMP_C,
+    snr_db: float | None = 20.0,
+    ring_gain: float = 30.0,
+    rng=None,
+) -> UltrasonicSim:
+    """Render an SRF02 echo recording: one ranging cycle per pose, sample 0 = first ping.
+
+    Each cycle lasts ``sensor.cycle_s`` (70 ms). It holds the ring-down (the drive through
+    the transducer at ``ring_gain`` times the amplitude of an on-axis echo from 1 m, at
+    lag 0) and every first-order specular wall echo (:func:`specular_echoes`) delayed by
+    ``2 d / c`` with its amplitude; the ping passes the transducer on the way out and in.
+    The noise is white; ``snr_db`` is the in-band SNR (as for :func:`render_oneway`) of an
+    on-axis echo at the sensor's maximum range, so the detection limit of the rendered
+    echoes follows the sensor's maximum range versus angle.
+
+    The truth holds per cycle the model range of :func:`rangekit.sensors.srf02.model_range`
+    with ``method="specular"`` (NaN = out of range) and the rendered echoes.
+
+    Parameters
+    ----------
+    plan : FloorPlan
+        The walls.
+    poses : array_like, shape (3,) or (n_cycles, 3)
+        Sensor carrier poses ``(x, y, heading_rad)``, one per ranging cycle.
+    sensor : SRF02, optional
+        Sensor parameters (beam, ranges, cycle).
+    mount_angle_rad : float
+        Sensor axis relative to the heading.
+    fs : float
+        Sample rate in Hz (default 192 kHz).
+    burst : CodedBurst, optional
+        The ping (default the SRF02's 8 cycles of 40 kHz).
+    transducer : Transducer, optional
+        The transducer (default Q = 4).
+    temp_c : float
+        Air temperature.
+    snr_db : float or None
+        See above; None = no noise.
+    ring_gain : float
+        Ring-down amplitude relative to a 1 m on-axis echo.
+    rng : seed or Generator
+        Randomness for the noise.
+    """
+    from rangekit.sensors.srf02 import SRF02, model_range
+    from rangekit.signals.barker import srf02_ping
+
+    sensor = SRF02() if sensor is None else sensor
+    fs = V.sample_rate(fs)
+    burst = srf02_ping(fs=fs) if burst is None else burst.with_fs(fs)
+    transducer = Transducer() if transducer is None else transducer
+    p = np.asarray(poses, dtype=np.float64)
+    if p.ndim == 1:
+        p = p[None, :]
+    if p.ndim != 2 or p.shape[1] != 3 or len(p) == 0 or not np.all(np.isfinite(p)):
+        raise InvalidParameterError("poses must be finite (x, y, heading_rad) rows")
+    if snr_db is not None:
+        snr_db = V.in_range("snr_db", snr_db, -60.0, 200.0)
+    ring_gain = V.positive("ring_gain", ring_gain, allow_zero=True)
+    c = speed_of_sound_m_s(temp_c)
+    drive = np.concatenate([burst_waveform(burst), np.zeros(int(0.002 * fs))])
+    emitted = transducer.apply(drive, fs=fs)
+    per = sensor.cycle_s * fs
+    n_samp = int(math.ceil(len(p) * per))
+    x = np.zeros(n_samp)
+    truth_model = model_range(plan, p, sensor, mount_angle_rad=mount_angle_rad, method="specular")
+    cycles = []
+    for k, pose in enumerate(p):
+        start = round(k * per)
+        _add_path(x, emitted, float(start), ring_gain)
+        d, psi, amp = specular_echoes(
+            plan, pose, mount_angle_rad=mount_angle_rad, beam_width_rad=sensor.aperture_rad
+        )
+        keep = 2.0 * d / c < sensor.cycle_s
+        for dk, ak in zip(d[keep], amp[keep], strict=True):
+            _add_path(x, emitted, start + 2.0 * dk / c * fs, 2.0 * ak)  # 2 a: 1 at 1 m on axis
+        m = float(truth_model[k])
+        cycles.append(
+            {
+                "window": k,
+                "start_sample": int(start),
+                "pose": pose.tolist(),
+                "distance_m": m if math.isfinite(m) else None,
+                "echoes": [
+                    {"distance_m": float(a), "off_axis_rad": float(b), "amplitude": float(2 * g)}
+                    for a, b, g in zip(d, psi, amp, strict=True)
+                ],
+            }
+        )
+    x = transducer.apply(x, fs=fs)
+    sigma = 0.0
+    if snr_db is not None:
+        e_1m = float(np.sum(transducer.apply(emitted, fs=fs) ** 2)) / fs  # energy, 1 m on axis
+        ref = 1.0 / sensor.max_range_m  # amplitude of an on-axis echo at max range
+        b_hz = burst.band_hz[1] - burst.band_hz[0]
+        n0 = ref**2 * e_1m / burst.duration_s / (10.0 ** (snr_db / 10.0) * b_hz)
+        sigma = math.sqrt(n0 * fs / 2.0)
+        x += sigma * make_noise(n_samp, rng=np.random.default_rng(rng))
+    truth = {
+        "scheme": "echo",
+        "fs": fs,
+        "temp_c": float(temp_c),
+        "speed_of_sound_m_s": c,
+        "period_s": sensor.cycle_s,
+        "snr_db": snr_db,
+        "noise_sigma": sigma,
+        "mount_angle_rad": float(mount_angle_rad),
+        "transducer_q": transducer.q,
+        "sensor": {
+            "aperture_rad": sensor.aperture_rad,
+            "min_range_m": sensor.min_range_m,
+            "max_range_m": sensor.max_range_m,
+            "cycle_s": sensor.cycle_s,
+        },
+        "windows": cycles,
+    }
+    return UltrasonicSim(x[None, :], fs, truth)
