@@ -82,6 +82,9 @@ DEFAULT_K_DETECT = 4.5
 #: stronger than the direct path still leaves the direct path above it; Barker-7's
 #: autocorrelation side lobes sit at 1/7 (-17 dB).
 DEFAULT_REL_THRESHOLD = 0.25
+#: Smallest noise level, relative to the window's strongest envelope value (-120 dB): a
+#: noiseless synthetic signal's rounding noise must not count as a noise floor.
+NOISE_FLOOR_REL = 1e-6
 #: sqrt(2 ln 2): the median of a Rayleigh variable in units of its scale.
 _RAYLEIGH_MEDIAN = math.sqrt(2.0 * math.log(2.0))
 
@@ -368,6 +371,12 @@ def first_path(
     peaks = np.flatnonzero((seg >= left) & (seg > right))
     if len(peaks) == 0:
         return None
+    # An absolute floor: a noiseless (synthetic) signal must not make rounding noise count.
+    noise = max(noise, NOISE_FLOOR_REL * float(env.max()))
+    if self_response is not None and np.iscomplexobj(c):
+        peaks = _drop_outside_sidelobes(c, env, peaks, lo, hi, k_detect * noise, self_response)
+        if len(peaks) == 0:
+            return None
     imax = int(peaks[np.argmax(seg[peaks])])
     top = float(seg[imax])
     thr = max(k_noise * noise, rel_threshold * top)
@@ -387,6 +396,39 @@ def first_path(
     d, h = interp_peak(env, lo + j)
     snr = h / noise if noise > 0 else math.inf
     return PathPeak(lo + j + d, h, snr, lo + imax + dmax)
+
+
+def _drop_outside_sidelobes(
+    c: np.ndarray,
+    env: np.ndarray,
+    peaks: np.ndarray,
+    lo: int,
+    hi: int,
+    floor: float,
+    self_response: np.ndarray,
+) -> np.ndarray:
+    """Drop in-range peaks that are only side lobes of a stronger path just outside.
+
+    A path just before ``lo`` (or after ``hi``) spreads side lobes into the search range;
+    those peaks are kept only if they still clear ``floor`` once that path's own response
+    is subtracted.
+    """
+    m = len(self_response) // 2
+    top = float(env[lo + peaks].max())
+    for a, b in ((max(1, lo - m), lo), (hi, min(len(env) - 1, hi + m))):
+        if b <= a:
+            continue
+        w = env[a:b]
+        pk = np.flatnonzero((w >= env[a - 1 : b - 1]) & (w > env[a + 1 : b + 1]))
+        if len(pk) == 0:
+            continue
+        j = a + int(pk[np.argmax(w[pk])])
+        if env[j] <= top:
+            continue
+        d, _ = interp_peak(env, j)
+        resid = _sidelobe_residual(c, j, d, self_response)
+        peaks = np.array([p for p in peaks if abs(resid(lo + int(p))) >= floor], dtype=np.int64)
+    return peaks
 
 
 def _sidelobe_residual(c: np.ndarray, i_peak: int, d_peak: float, self_response: np.ndarray):

@@ -317,7 +317,7 @@ def range_echo(
     parameters as :func:`range_oneway`.
     """
     fs = V.sample_rate(fs)
-    burst = srf02_ping(fs=fs) if burst is None else burst
+    burst = srf02_ping() if burst is None else burst
     check_burst_fits(burst, fs=fs)
     x = _as_channels(x)
     c = _speed(temp_c, speed_m_s)

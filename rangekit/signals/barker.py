@@ -91,10 +91,11 @@ class CodedBurst:
 
     def __post_init__(self) -> None:
         try:
-            code = tuple(int(c) for c in self.code)
+            chips = [float(c) for c in self.code]
         except (TypeError, ValueError):
             raise InvalidParameterError(f"code={self.code!r} must be a sequence of +1/-1") from None
-        if not code or any(c not in (1, -1) for c in code) or len(code) != len(self.code):
+        code = tuple(int(c) for c in chips if c in (1.0, -1.0))
+        if not code or len(code) != len(chips):
             raise InvalidParameterError(f"code={self.code!r} must be a non-empty sequence of +1/-1")
         object.__setattr__(self, "code", code)
         object.__setattr__(self, "carrier_hz", V.positive("carrier_hz", self.carrier_hz))

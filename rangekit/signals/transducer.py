@@ -7,21 +7,21 @@ rangekit models each as the second-order band-pass resonator
     H(s) = (w0 / Q) s / (s^2 + (w0 / Q) s + w0^2),
 
 unit gain at the resonance ``w0 = 2 pi f0`` and -3 dB bandwidth ``f0 / Q``. It is
-discretised with the bilinear transform prewarped at ``f0`` (the "constant 0 dB peak
-gain" band-pass biquad), so the digital resonance sits exactly at ``f0`` at any rate.
+discretised with the bilinear transform with both the centre and the -3 dB bandwidth
+prewarped (the second-order peaking filter of Orfanidis, *Introduction to Signal
+Processing*, §11.3; ``scipy.signal.iirpeak``), so the digital resonance sits exactly at
+``f0`` and the digital -3 dB band is exactly ``f0 / Q`` wide at any rate.
 
 The filter is causal: a transducer delays what passes through it (the group delay at
-resonance is ``Q / (pi f0)`` for the analogue resonator, 32 us = 11 mm of sound for Q = 4
-at 40 kHz; 43 us for its bilinear discretisation at 192 kHz). Simulated
+resonance is ``Q / (pi f0)``, 32 us = 11 mm of sound for Q = 4 at 40 kHz). Simulated
 recordings put both transducers in the path; the matched-filter template can fold the
 same responses in (:func:`rangekit.detect.matched.coded_template`), which removes that
 delay from the arrival times. Without folding, the delay stays in the ranges as a bias
 (tested in ``tests/detect/test_matched.py``).
 
 The default ``Q = 4`` gives the element a -3 dB bandwidth of 10 kHz, the bandwidth
-Kim & Kim 2013 §II-A quote for their emitted signal; the filtered Barker-7 burst is then
-about 6 kHz wide at -3 dB after one transducer and 4 kHz after two. A bare MA40S4 element
-may be sharper: set Q from your transducer's datasheet.
+Kim & Kim 2013 §II-A quote for their emitted signal. A bare MA40S4 element may be
+sharper: set Q from your transducer's datasheet.
 
 Examples
 --------
@@ -29,7 +29,7 @@ Examples
 >>> t.f0_hz, t.q, t.bandwidth_hz
 (40000.0, 4.0, 10000.0)
 >>> round(t.group_delay_s(fs=192000.0) * 1e6, 1)
-43.1
+31.5
 """
 
 from __future__ import annotations
@@ -70,17 +70,18 @@ class Transducer:
         return self.f0_hz / self.q
 
     def coefficients(self, *, fs: float) -> tuple[np.ndarray, np.ndarray]:
-        """Digital biquad ``(b, a)`` at sample rate ``fs`` (bilinear, prewarped at f0)."""
+        """Digital biquad ``(b, a)`` at rate ``fs``: peak gain 1 at f0, -3 dB band f0 / Q wide."""
         fs = V.sample_rate(fs)
         if self.f0_hz >= fs / 2:
             raise InvalidParameterError(
                 f"transducer f0_hz={self.f0_hz:g} Hz is above the Nyquist frequency of fs={fs:g} Hz"
             )
         w0 = 2.0 * math.pi * self.f0_hz / fs
-        alpha = math.sin(w0) / (2.0 * self.q)
-        a0 = 1.0 + alpha
-        b = np.array([alpha, 0.0, -alpha]) / a0
-        a = np.array([1.0, -2.0 * math.cos(w0) / a0, (1.0 - alpha) / a0])
+        bw = min(self.bandwidth_hz, 0.99 * fs / 2)
+        beta = math.tan(math.pi * bw / fs)
+        g = 1.0 / (1.0 + beta)
+        b = (1.0 - g) * np.array([1.0, 0.0, -1.0])
+        a = np.array([1.0, -2.0 * g * math.cos(w0), 2.0 * g - 1.0])
         return b, a
 
     def apply(self, x: np.ndarray, *, fs: float) -> np.ndarray:
