@@ -168,6 +168,46 @@ def _parse_pose(text: str, name: str = "--pose") -> list[float]:
     return v
 
 
+def _ultrasonic_synth_options(f):
+    """--temperature, --q, --fs, --seed, -o and --debug of the ultrasonic synth commands."""
+    opts = [
+        click.option(
+            "--temperature",
+            "temp_c",
+            type=FiniteRange(-60.0, 60.0),
+            default=20.0,
+            show_default=True,
+            help="Air temperature, C.",
+        ),
+        click.option(
+            "--q",
+            type=FiniteRange(0.5, 100.0),
+            default=4.0,
+            show_default=True,
+            help="Q of the transducers (Tx and Rx; the echo sensor has one).",
+        ),
+        click.option(
+            "--fs",
+            type=FiniteRange(1000.0, 1e7),
+            default=192000.0,
+            show_default=True,
+            help="Sample rate, Hz.",
+        ),
+        click.option("--seed", type=int, default=None, help="Random seed (noise)."),
+        click.option("--no-noise", is_flag=True, help="Render without noise."),
+        click.option(
+            "-o",
+            "--output",
+            type=click.Path(dir_okay=False),
+            required=True,
+            help="WAV file to write.",
+        ),
+    ]
+    for o in reversed(opts):
+        f = o(f)
+    return debug_option(f)
+
+
 @synth.command("oneway")
 @click.option(
     "--tx",
@@ -226,7 +266,6 @@ def _parse_pose(text: str, name: str = "--pose") -> list[float]:
     show_default=True,
     help="In-band SNR of the weakest direct arrival, dB (band: the code's main lobe).",
 )
-@click.option("--no-noise", is_flag=True, help="Render without noise.")
 @click.option(
     "--room", default=None, metavar="LX,LY,LZ", help="Shoebox room (reflections); positions inside."
 )
@@ -251,33 +290,7 @@ def _parse_pose(text: str, name: str = "--pose") -> list[float]:
     metavar="DELAY_MS,GAIN",
     help="An extra path for every arrival: DELAY_MS after the direct one, GAIN times it (repeat).",
 )
-@click.option(
-    "--temperature",
-    "temp_c",
-    type=FiniteRange(-60.0, 60.0),
-    default=20.0,
-    show_default=True,
-    help="Air temperature, C.",
-)
-@click.option(
-    "--q",
-    type=FiniteRange(0.5, 100.0),
-    default=4.0,
-    show_default=True,
-    help="Q of the Tx and Rx transducers.",
-)
-@click.option(
-    "--fs",
-    type=FiniteRange(1000.0, 1e7),
-    default=192000.0,
-    show_default=True,
-    help="Sample rate, Hz.",
-)
-@click.option("--seed", type=int, default=None, help="Random seed (noise).")
-@click.option(
-    "-o", "--output", type=click.Path(dir_okay=False), required=True, help="WAV file to write."
-)
-@debug_option
+@_ultrasonic_synth_options
 def synth_oneway(
     txs, ceiling, pose, radius, n_windows, period, latency, snr_db, no_noise, room, absorption,
     order, reflections, temp_c, q, fs, seed, output,
@@ -386,34 +399,7 @@ def synth_oneway(
     show_default=True,
     help="In-band SNR of an on-axis echo at the 6 m maximum range, dB.",
 )
-@click.option("--no-noise", is_flag=True, help="Render without noise.")
-@click.option(
-    "--temperature",
-    "temp_c",
-    type=FiniteRange(-60.0, 60.0),
-    default=20.0,
-    show_default=True,
-    help="Air temperature, C.",
-)
-@click.option(
-    "--q",
-    type=FiniteRange(0.5, 100.0),
-    default=4.0,
-    show_default=True,
-    help="Q of the transducer.",
-)
-@click.option(
-    "--fs",
-    type=FiniteRange(1000.0, 1e7),
-    default=192000.0,
-    show_default=True,
-    help="Sample rate, Hz.",
-)
-@click.option("--seed", type=int, default=None, help="Random seed (noise).")
-@click.option(
-    "-o", "--output", type=click.Path(dir_okay=False), required=True, help="WAV file to write."
-)
-@debug_option
+@_ultrasonic_synth_options
 def synth_echo(map_path, poses, mount, snr_db, no_noise, temp_c, q, fs, seed, output):
     """SRF02 echo recording in a floor plan: one 70 ms ranging cycle per --pose.
 
