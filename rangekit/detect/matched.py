@@ -206,23 +206,30 @@ class MatchedFilter:
         return self._self_response
 
     def _segments(self, xp: np.ndarray, n_out: int) -> np.ndarray:
-        """Correlation outputs ``[0, n_out)`` of the padded input ``xp`` (x shifted by pre)."""
+        """Correlation outputs ``[0, n_out)`` of the padded input ``xp`` (x shifted by pre).
+
+        The FFT blocks are strided windows of ``xp`` (no gathered copies) in batches of
+        about 2^18 samples, small enough that their temporaries are reused rather than
+        freshly mapped and zeroed by the OS (see ``docs/performance.md``).
+        """
+        from numpy.lib.stride_tricks import sliding_window_view
+
         sf, n, step = self._fft, self.n_fft, self.step
         out = np.empty(n_out, dtype=np.complex128)
         n_blocks = -(-n_out // step)
-        per = max(1, (1 << 22) // n)  # blocks per batched FFT call (bounded memory)
+        need = (n_blocks - 1) * step + n
+        if len(xp) < need:
+            xp = np.concatenate([xp, np.zeros(need - len(xp))])
+        win = sliding_window_view(xp, n)[::step]
+        per = max(1, (1 << 18) // n)  # blocks per batched FFT call
         for b0 in range(0, n_blocks, per):
             b1 = min(n_blocks, b0 + per)
-            idx = np.arange(b0, b1)[:, None] * step + np.arange(n)[None, :]
-            seg = xp[np.minimum(idx, len(xp) - 1)]
-            seg[idx >= len(xp)] = 0.0
-            X = sf.rfft(seg, axis=1)
-            yr = sf.irfft(X * self._gr, n, axis=1)[:, :step]
-            yi = sf.irfft(X * self._gi, n, axis=1)[:, :step]
+            X = sf.rfft(win[b0:b1], axis=1)
             s0 = b0 * step
             m = min(n_out - s0, (b1 - b0) * step)
-            out[s0 : s0 + m].real = yr.reshape(-1)[:m]
-            out[s0 : s0 + m].imag = yi.reshape(-1)[:m]
+            o = out[s0 : s0 + m]
+            o.real = sf.irfft(X * self._gr, n, axis=1)[:, :step].reshape(-1)[:m]
+            o.imag = sf.irfft(X * self._gi, n, axis=1)[:, :step].reshape(-1)[:m]
         return out
 
     def correlate(self, x: np.ndarray) -> np.ndarray:
