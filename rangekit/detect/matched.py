@@ -310,7 +310,7 @@ class PathPeak:
     snr : float
         Peak height over the noise's Rayleigh scale (``sqrt(2 E / N0)``, linear).
     strongest_lag : float
-        Lag of the strongest peak in the window (equals ``lag`` unless a later path won).
+        Lag of the strongest peak in the window (equals ``lag`` unless an earlier path won).
     """
 
     lag: float
