@@ -154,6 +154,23 @@ def chi2_gate(prob: float, dim: int) -> float:
 
 
 # --------------------------------------------------------------------------- predict
+
+
+def _linearise(model, x: np.ndarray, m: int, *, model_name: str, matrix_name: str, value: str):
+    """``(value, jacobian)`` of a model given as a matrix or as ``model(x) -> (value, J)``."""
+    d = x.size
+    jac = f"{matrix_name}_jacobian"
+    if callable(model):
+        out = model(x)
+        if not (isinstance(out, tuple) and len(out) == 2):
+            raise InvalidParameterError(
+                f"{model_name}, when callable, must return a tuple ({value}, {jac})"
+            )
+        return _vector(f"{model_name.lower()}(x)", out[0], m), _matrix(jac, out[1], (m, d))
+    J = _matrix(matrix_name, model, (m, d))
+    return J @ x, J
+
+
 def predict(x, P, F: np.ndarray | MotionModel, Q) -> tuple[np.ndarray, np.ndarray]:
     """Propagate a Gaussian state estimate one step through a (linearised) motion model.
 
@@ -201,15 +218,7 @@ def predict(x, P, F: np.ndarray | MotionModel, Q) -> tuple[np.ndarray, np.ndarra
     d = x.size
     P = _covariance("P", P, d)
     Q = _covariance("Q", Q, d)
-    if callable(F):
-        out = F(x)
-        if not (isinstance(out, tuple) and len(out) == 2):
-            raise InvalidParameterError("F, when callable, must return a tuple (x_new, F_jacobian)")
-        x_new = _vector("f(x)", out[0], d)
-        Fm = _matrix("F_jacobian", out[1], (d, d))
-    else:
-        Fm = _matrix("F", F, (d, d))
-        x_new = Fm @ x
+    x_new, Fm = _linearise(F, x, d, model_name="F", matrix_name="F", value="x_new")
     return x_new, _symmetrise(Fm @ P @ Fm.T + Q)
 
 
@@ -332,15 +341,7 @@ def update(
     z = _vector("z", z)
     m = z.size
     R = _covariance("R", R, m)
-    if callable(h):
-        out = h(x)
-        if not (isinstance(out, tuple) and len(out) == 2):
-            raise InvalidParameterError("h, when callable, must return a tuple (z_pred, H)")
-        z_pred = _vector("h(x)", out[0], m)
-        H = _matrix("H_jacobian", out[1], (m, d))
-    else:
-        H = _matrix("H", h, (m, d))
-        z_pred = H @ x
+    z_pred, H = _linearise(h, x, m, model_name="h", matrix_name="H", value="z_pred")
     y = z - z_pred if residual is None else _vector("residual(z, z_pred)", residual(z, z_pred), m)
     threshold = _threshold(gate, gate_nis, m)
 
