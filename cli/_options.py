@@ -70,6 +70,18 @@ def make_beep(kw: dict, *, amplitude: float | None = None):
     return Beep(**args)
 
 
+def temperature_option(f):
+    """--temperature C: air temperature (sets the speed of sound)."""
+    return click.option(
+        "--temperature",
+        "temp_c",
+        type=FiniteRange(-60.0, 60.0),
+        default=20.0,
+        show_default=True,
+        help="Air temperature, C.",
+    )(f)
+
+
 def ultrasonic_options(f):
     """Options of the ultrasonic schemes (oneway, echo) of ``rangekit range``."""
     opts = [

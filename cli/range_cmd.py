@@ -14,6 +14,7 @@ from rangekit_cli._options import (
     make_beep,
     make_burst,
     output_option,
+    temperature_option,
     ultrasonic_options,
 )
 
@@ -36,14 +37,7 @@ from rangekit_cli._options import (
     show_default=True,
     help="Speaker-to-microphone distance in metres: one for all devices, or one per device.",
 )
-@click.option(
-    "--temperature",
-    "temp_c",
-    type=FiniteRange(-60.0, 60.0),
-    default=20.0,
-    show_default=True,
-    help="Air temperature, C.",
-)
+@temperature_option
 @click.option(
     "--speed-of-sound",
     "speed",

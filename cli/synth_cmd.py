@@ -5,7 +5,14 @@ from __future__ import annotations
 from pathlib import Path
 
 import click
-from rangekit_cli._options import FiniteRange, beep_options, debug_option, float_list, make_beep
+from rangekit_cli._options import (
+    FiniteRange,
+    beep_options,
+    debug_option,
+    float_list,
+    make_beep,
+    temperature_option,
+)
 
 
 @click.group("synth")
@@ -54,14 +61,7 @@ def _parse_point(text: str, name: str) -> list[float]:
 @click.option(
     "--order", type=int, default=1, show_default=True, help="Image-source reflection order."
 )
-@click.option(
-    "--temperature",
-    "temp_c",
-    type=float,
-    default=20.0,
-    show_default=True,
-    help="Air temperature, C.",
-)
+@temperature_option
 @click.option(
     "--ppm", default=None, metavar="E[,E...]", help="Sample-clock error per device, ppm [0]."
 )
@@ -172,14 +172,6 @@ def _ultrasonic_synth_options(f):
     """--temperature, --q, --fs, --seed, -o and --debug of the ultrasonic synth commands."""
     opts = [
         click.option(
-            "--temperature",
-            "temp_c",
-            type=FiniteRange(-60.0, 60.0),
-            default=20.0,
-            show_default=True,
-            help="Air temperature, C.",
-        ),
-        click.option(
             "--q",
             type=FiniteRange(0.5, 100.0),
             default=4.0,
@@ -205,7 +197,7 @@ def _ultrasonic_synth_options(f):
     ]
     for o in reversed(opts):
         f = o(f)
-    return debug_option(f)
+    return debug_option(temperature_option(f))
 
 
 @synth.command("oneway")
