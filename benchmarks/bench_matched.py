@@ -62,13 +62,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
-# One core, like the target: no BLAS/OpenMP thread pools (set before numpy is imported).
-os.environ.setdefault("OMP_NUM_THREADS", "1")
-os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
-os.environ.setdefault("MKL_NUM_THREADS", "1")
-
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-
+import _one_core  # noqa: F401  (one thread, repo on sys.path; before numpy)
 import numpy as np
 import scipy.signal as ss
 import soundfile as sf
