@@ -20,6 +20,7 @@ __all__ = [
     "IncompatibleInputError",
     "InputFileError",
     "InvalidParameterError",
+    "LogFormatError",
     "RangekitError",
 ]
 
@@ -44,6 +45,16 @@ class InputFileError(RangekitError, OSError):
 
 class AudioFormatError(RangekitError, ValueError):
     """A file is not audio, or is audio in a form rangekit cannot use (exit code 4)."""
+
+    exit_code = 4
+
+
+class LogFormatError(RangekitError, ValueError):
+    """A data file (measurement log, step or range CSV) is malformed (exit code 4).
+
+    The message names the file, the row (1-based, counting the header as row 1) and the
+    column. Examples: a missing column, a NaN, time going backwards, a negative sigma.
+    """
 
     exit_code = 4
 
