@@ -1,0 +1,386 @@
+"""Compiled loop of the range-tracking EKF (Jiang 2018 §4.4), one call for a whole log.
+
+Private. :mod:`rangekit.localize.range_ekf` flattens a measurement log into the arrays
+below and calls :func:`run_range_ekf`; the same module has a plain-numpy reference built
+on :func:`rangekit.localize.ekf.update`, and ``tests/localize/test_range_ekf.py`` checks
+the two agree to rounding.
+
+State: for each of N targets ``[x, y, vx, vy]`` (d = 4N), constant velocity driven by
+white acceleration of spectral density ``q[t]`` (m²/s³ per axis) for target t.
+
+Measurement rows (scalar), per epoch a contiguous slice ``start[e]:start[e+1]``:
+
+====  ==========================================================================
+kind  meaning
+====  ==========================================================================
+0     range robot -> target ``b``; its noise also carries the robot position error
+1     range target ``a`` -> target ``b``
+2, 3  x (2) or y (3) of target ``b`` in the world frame (robot pose + relative fix);
+      rows 2 and 3 of one fix are adjacent, ``cov`` holds their noise covariance
+====  ==========================================================================
+
+Noise model (Jiang 2018 eqs (7), (9), (11)–(13), generalised): the measurement error is
+``G e_r + n`` with ``e_r`` the robot position error (covariance ``P_r``) and ``n``
+independent per row (variance ``var``; x/y of a fix correlated by ``cov``), so
+``R = G P_r G^T + N``. ``G`` is ``sign * u^T`` for a robot range (``u`` the unit vector
+robot -> target; ``sign`` +1 is the physical sign, -1 the sign printed in eq (12)), the
+unit vector of the axis for a fix row, and 0 for target-target ranges.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+LOG_2PI = math.log(2.0 * math.pi)
+
+
+@njit(cache=True)
+def cv_predict(x, P, dt, q, xo, Po):  # pragma: no cover - compiled
+    """x, P -> xo, Po over ``dt`` s for the constant-velocity model (in place into xo, Po)."""
+    d = x.size
+    n_t = d // 4
+    for i in range(d):
+        xo[i] = x[i]
+    for t in range(n_t):
+        o = 4 * t
+        xo[o] += dt * x[o + 2]
+        xo[o + 1] += dt * x[o + 3]
+    # Po = F P F^T: F adds dt * velocity rows to position rows
+    for i in range(d):
+        for j in range(d):
+            Po[i, j] = P[i, j]
+    for t in range(n_t):  # rows
+        o = 4 * t
+        for j in range(d):
+            Po[o, j] += dt * P[o + 2, j]
+            Po[o + 1, j] += dt * P[o + 3, j]
+    for t in range(n_t):  # columns
+        o = 4 * t
+        for i in range(d):
+            Po[i, o] += dt * Po[i, o + 2]
+            Po[i, o + 1] += dt * Po[i, o + 3]
+    for t in range(n_t):
+        o = 4 * t
+        a = q[t] * dt * dt * dt / 3.0
+        b = q[t] * dt * dt / 2.0
+        c = q[t] * dt
+        for k in range(2):
+            Po[o + k, o + k] += a
+            Po[o + k, o + 2 + k] += b
+            Po[o + 2 + k, o + k] += b
+            Po[o + 2 + k, o + 2 + k] += c
+
+
+@njit(cache=True)
+def _linearise(x, kind, a, b, val, lo, hi, rx, ry, sign, z, zh, H, G, ok):  # pragma: no cover
+    """Rows lo..hi-1: measured z, predicted zh, Jacobian H, robot-error map G, usable ok."""
+    d = x.size
+    for r in range(hi - lo):
+        i = lo + r
+        k = kind[i]
+        z[r] = val[i]
+        for j in range(d):
+            H[r, j] = 0.0
+        G[r, 0] = 0.0
+        G[r, 1] = 0.0
+        ok[r] = True
+        ob = 4 * b[i]
+        if k == 0 or k == 1:
+            if k == 0:
+                ax, ay = rx, ry
+            else:
+                oa = 4 * a[i]
+                ax, ay = x[oa], x[oa + 1]
+            dx = x[ob] - ax
+            dy = x[ob + 1] - ay
+            dist = math.sqrt(dx * dx + dy * dy)
+            if dist < 1e-9 or not math.isfinite(val[i]):
+                ok[r] = False
+                zh[r] = 0.0
+                continue
+            zh[r] = dist
+            ux, uy = dx / dist, dy / dist
+            H[r, ob] = ux
+            H[r, ob + 1] = uy
+            if k == 1:
+                oa = 4 * a[i]
+                H[r, oa] = -ux
+                H[r, oa + 1] = -uy
+            else:
+                G[r, 0] = sign * ux
+                G[r, 1] = sign * uy
+        else:
+            c = k - 2
+            zh[r] = x[ob + c]
+            H[r, ob + c] = 1.0
+            G[r, c] = 1.0
+
+
+@njit(cache=True)
+def _chol_inplace(S, m):  # pragma: no cover - compiled
+    """Lower Cholesky factor of S[:m, :m] in place; False if not positive definite."""
+    for j in range(m):
+        s = S[j, j]
+        for k in range(j):
+            s -= S[j, k] * S[j, k]
+        if not (s > 0.0):
+            return False
+        s = math.sqrt(s)
+        S[j, j] = s
+        for i in range(j + 1, m):
+            t = S[i, j]
+            for k in range(j):
+                t -= S[i, k] * S[j, k]
+            S[i, j] = t / s
+        for i in range(j):
+            S[i, j] = 0.0
+    return True
+
+
+@njit(cache=True)
+def epoch_update(
+    x, P, kind, a, b, val, var, cov, lo, hi, rx, ry, Pr, sign, thr, gate_kind_max,
+    acc, nis_out, inno_out,
+):  # pragma: no cover - compiled  # fmt: skip
+    """One joint EKF update with the rows lo..hi-1, after per-row gating of the ranges.
+
+    Each range row (kind <= ``gate_kind_max``) is gated on its own marginal innovation:
+    ``y_i^2 / S_ii > thr`` rejects it. The kept rows update jointly (Joseph form).
+    Writes ``acc`` (kept?), ``nis_out`` (marginal NIS) and ``inno_out`` (innovation) for
+    every row; updates x, P in
+    place; returns the log-likelihood of the epoch (rejected rows count as NIS = thr).
+    """
+    d = x.size
+    m = hi - lo
+    z = np.empty(m)
+    zh = np.empty(m)
+    H = np.empty((m, d))
+    G = np.empty((m, 2))
+    ok = np.empty(m, dtype=np.bool_)
+    _linearise(x, kind, a, b, val, lo, hi, rx, ry, sign, z, zh, H, G, ok)
+    # PHt = P H^T (d x m), S = H P H^T + G Pr G^T + N
+    PHt = np.zeros((d, m))
+    for i in range(d):
+        for r in range(m):
+            s = 0.0
+            for j in range(d):
+                s += P[i, j] * H[r, j]
+            PHt[i, r] = s
+    S = np.empty((m, m))
+    for r in range(m):
+        for c in range(m):
+            s = 0.0
+            for j in range(d):
+                s += H[r, j] * PHt[j, c]
+            g = G[r, 0] * (Pr[0, 0] * G[c, 0] + Pr[0, 1] * G[c, 1]) + G[r, 1] * (
+                Pr[1, 0] * G[c, 0] + Pr[1, 1] * G[c, 1]
+            )
+            S[r, c] = s + g
+    for r in range(m):
+        i = lo + r
+        S[r, r] += var[i]
+        if kind[i] == 2 and r + 1 < m and kind[i + 1] == 3:
+            S[r, r + 1] += cov[i]
+            S[r + 1, r] += cov[i]
+    # gating on the marginal innovation of each range row
+    ll = 0.0
+    keep = np.empty(m, dtype=np.int64)
+    mk = 0
+    for r in range(m):
+        i = lo + r
+        if not ok[r]:
+            acc[i] = False
+            nis_out[i] = np.nan
+            inno_out[i] = np.nan
+            continue
+        y = z[r] - zh[r]
+        inno_out[i] = y
+        nis = y * y / S[r, r]
+        nis_out[i] = nis
+        if kind[i] <= gate_kind_max and nis > thr:
+            acc[i] = False
+            ll -= 0.5 * (thr + math.log(S[r, r]) + LOG_2PI)
+        else:
+            acc[i] = True
+            keep[mk] = r
+            mk += 1
+    if mk == 0:
+        return ll
+    # reduced system
+    Sk = np.empty((mk, mk))
+    yk = np.empty(mk)
+    for p in range(mk):
+        yk[p] = z[keep[p]] - zh[keep[p]]
+        for q in range(mk):
+            Sk[p, q] = S[keep[p], keep[q]]
+    Rk = Sk.copy()  # R = S - H P H^T on the kept rows (needed for the Joseph form)
+    for p in range(mk):
+        for q in range(mk):
+            s = 0.0
+            for j in range(d):
+                s += H[keep[p], j] * PHt[j, keep[q]]
+            Rk[p, q] -= s
+    if not _chol_inplace(Sk, mk):
+        for p in range(mk):
+            acc[lo + keep[p]] = False
+        return -np.inf
+    L = Sk
+    # w = L^-1 y ; nis = |w|^2 ; logdet = 2 sum log diag L
+    w = yk.copy()
+    for p in range(mk):
+        s = w[p]
+        for q in range(p):
+            s -= L[p, q] * w[q]
+        w[p] = s / L[p, p]
+    nis_joint = 0.0
+    logdet = 0.0
+    for p in range(mk):
+        nis_joint += w[p] * w[p]
+        logdet += 2.0 * math.log(L[p, p])
+    ll -= 0.5 * (nis_joint + logdet + mk * LOG_2PI)
+    # K^T = S^-1 (P H^T)^T : solve L L^T Kt = PHt^T (mk x d)
+    Kt = np.empty((mk, d))
+    for j in range(d):
+        for p in range(mk):
+            s = PHt[j, keep[p]]
+            for q in range(p):
+                s -= L[p, q] * Kt[q, j]
+            Kt[p, j] = s / L[p, p]
+        for p in range(mk - 1, -1, -1):
+            s = Kt[p, j]
+            for q in range(p + 1, mk):
+                s -= L[q, p] * Kt[q, j]
+            Kt[p, j] = s / L[p, p]
+    # x += K y  (y reused: innovation = L w)
+    for j in range(d):
+        s = 0.0
+        for p in range(mk):
+            s += Kt[p, j] * yk[p]
+        x[j] += s
+    # Joseph form: P = A P A^T + K R K^T, A = I - K H
+    A = np.empty((d, d))
+    for i in range(d):
+        for j in range(d):
+            s = 0.0
+            for p in range(mk):
+                s += Kt[p, i] * H[keep[p], j]
+            A[i, j] = (1.0 if i == j else 0.0) - s
+    AP = np.empty((d, d))
+    for i in range(d):
+        for j in range(d):
+            s = 0.0
+            for k in range(d):
+                s += A[i, k] * P[k, j]
+            AP[i, j] = s
+    KR = np.empty((d, mk))
+    for i in range(d):
+        for q in range(mk):
+            s = 0.0
+            for p in range(mk):
+                s += Kt[p, i] * Rk[p, q]
+            KR[i, q] = s
+    for i in range(d):
+        for j in range(i, d):
+            s = 0.0
+            for k in range(d):
+                s += AP[i, k] * A[j, k]
+            for q in range(mk):
+                s += KR[i, q] * Kt[q, j]
+            P[i, j] = s
+            P[j, i] = s
+    return ll
+
+
+@njit(cache=True)
+def epoch_step(
+    x, P, xp, Pp, dt, e, start, kind, a, b, val, var, cov, robot_xy, robot_P, q, sign, thr,
+    gate_kind_max, relock, sigma_v0, streak, acc, nis, inno,
+):  # pragma: no cover - compiled  # fmt: skip
+    """Predict ``x, P`` by ``dt`` (prior into ``xp, Pp``), update with epoch ``e``'s rows
+    in place; returns (log-likelihood, number of targets re-opened).
+
+    Lock-out breaker: when every range of a target has been gated out in ``relock``
+    consecutive epochs (``streak`` counts them per target), the filter has lost it (a
+    wrong start, or NLOS ranges that pulled it away). Its position variance is then
+    inflated by the largest squared innovation of those ranges and its velocity variance
+    by ``sigma_v0**2``, and the epoch is updated again without the gate, so it recovers
+    instead of rejecting every range thereafter.
+    """
+    n_t = x.size // 4
+    cv_predict(x, P, dt, q, xp, Pp)
+    lo, hi = start[e], start[e + 1]
+    x[:] = xp
+    P[:, :] = Pp
+    rx, ry = robot_xy[e, 0], robot_xy[e, 1]
+    ll = epoch_update(
+        x, P, kind, a, b, val, var, cov, lo, hi, rx, ry, robot_P[e], sign, thr,
+        gate_kind_max, acc, nis, inno,
+    )  # fmt: skip
+    n_re = 0
+    for j in range(n_t):
+        n_r = 0
+        n_ok = 0
+        worst = 0.0
+        for r in range(lo, hi):
+            if kind[r] <= gate_kind_max and (b[r] == j or (kind[r] == 1 and a[r] == j)):
+                if not math.isnan(nis[r]):
+                    n_r += 1
+                    if acc[r]:
+                        n_ok += 1
+                    if inno[r] * inno[r] > worst:
+                        worst = inno[r] * inno[r]
+        if n_r == 0:
+            continue
+        if n_ok > 0:
+            streak[j] = 0
+            continue
+        streak[j] += 1
+        if streak[j] >= relock:
+            o = 4 * j
+            Pp[o, o] += worst
+            Pp[o + 1, o + 1] += worst
+            Pp[o + 2, o + 2] += sigma_v0 * sigma_v0
+            Pp[o + 3, o + 3] += sigma_v0 * sigma_v0
+            streak[j] = 0
+            n_re += 1
+    if n_re > 0:
+        x[:] = xp
+        P[:, :] = Pp
+        ll = epoch_update(
+            x, P, kind, a, b, val, var, cov, lo, hi, rx, ry, robot_P[e], sign, np.inf,
+            gate_kind_max, acc, nis, inno,
+        )  # fmt: skip
+    return ll, n_re
+
+
+@njit(cache=True)
+def run_range_ekf(
+    x0, P0, t0, ev_t, start, kind, a, b, val, var, cov, robot_xy, robot_P, q, sign, thr,
+    gate_kind_max, relock, sigma_v0, xs, Ps, xps, Pps, acc, nis, inno, ll, reinit,
+):  # pragma: no cover - compiled  # fmt: skip
+    """Filter a whole log with :func:`epoch_step`: for each epoch e, predict to ev_t[e]
+    then update with its rows.
+
+    Fills ``xs``/``Ps`` (posterior), ``xps``/``Pps`` (prior: the prediction to epoch e),
+    ``acc``/``nis``/``inno`` per row, ``ll`` per epoch and ``reinit`` (targets re-opened).
+    """
+    d = x0.size
+    x = x0.copy()
+    P = P0.copy()
+    xp = np.empty(d)
+    Pp = np.empty((d, d))
+    streak = np.zeros(d // 4, dtype=np.int64)
+    t = t0
+    for e in range(ev_t.size):
+        ll[e], reinit[e] = epoch_step(
+            x, P, xp, Pp, ev_t[e] - t, e, start, kind, a, b, val, var, cov, robot_xy,
+            robot_P, q, sign, thr, gate_kind_max, relock, sigma_v0, streak, acc, nis, inno,
+        )  # fmt: skip
+        t = ev_t[e]
+        xps[e] = xp
+        Pps[e] = Pp
+        xs[e] = x
+        Ps[e] = P

@@ -1,0 +1,786 @@
+"""Tracking people from acoustic ranges: the EKF of Jiang 2018 §4.4, for N targets.
+
+The state holds position and velocity of every target, ``[x_1, y_1, vx_1, vy_1, x_2, ...]``
+(Jiang 2018 §4.4.1: ``x = [ξ_t1, v_t1, ξ_t2, v_t2]``), each moving with constant velocity
+driven by white acceleration (eqs (2)–(3)). Measurements come from a
+:class:`~rangekit.io.tracklog.MeasurementLog`: ranges robot–target (``z1 = d_r2``, eq (4a)),
+ranges target–target (``z2 = d_12``, eq (4b)) and world positions of followed targets
+from the robot's pose plus a relative fix (``z3 = ξ_t1``, eq (4c)). All rows with the same
+time form one measurement vector, and its covariance is Jiang's ``R(k)`` (eqs (7), (9),
+(11)–(13)) generalised: every row that depends on the robot's pose shares its error.
+
+Choices where the paper is silent or ambiguous (``docs/theory/jiang2018.md``):
+
+- **Process noise.** Continuous white acceleration with spectral density ``accel_psd``
+  (m²/s³) instead of the paper's per-step ``Q``, so irregular epoch spacing is handled
+  exactly.
+- **Sign of the cross-covariance (eq (12)).** With ``e_r`` the error of the robot's
+  position estimate, the robot–target range error is ``-H_r2,2 e_r`` and the fix error
+  is ``+e_r``, so ``R_r2,t1 = -H_r2,2 P_r``; the paper prints ``+H_r2,2 P_r``.
+  ``cross_sign="physical"`` (default) uses the derived sign, ``"paper"`` the printed one;
+  ``tests/localize/test_range_ekf.py`` checks the derived ``R`` against a Monte Carlo of
+  the measurement errors.
+- **Initialisation without prior knowledge** (the paper gives none): at the first epoch
+  a target that has a fix starts there; a target with a range to a known point (the
+  robot, or a target with a fix) starts at ``n_ring`` points on the circle of its most
+  precise such range, each with the ring spacing as tangential sigma. Every combination
+  is a hypothesis (an EKF) in a bank.
+- **Mirror ambiguity.** Ranges from the robot and from the followed person, 1–1.5 m
+  apart, fix a target only up to its reflection in the line through them; when the
+  target crosses that line a single EKF may follow the wrong branch for good. At every
+  epoch each hypothesis also spawns its mirror image, and the ``n_keep`` candidates with
+  the highest cumulative measurement likelihood survive (a Gaussian-sum filter with
+  pruning). The filtered output at each epoch is the best hypothesis so far (causal;
+  it stays with the descendant of the last reported one unless beaten by 20:1);
+  the smoothed track is the RTS smoother over the lineage of the best final hypothesis.
+- **Gating.** Each range is gated on its own innovation (``y_i² / S_ii`` against the
+  ``gate`` quantile of chi-square with 1 dof), so one non-line-of-sight range (0.5–5 m
+  too long, §5.4.3) is rejected and logged without discarding the rest of its epoch.
+
+Examples
+--------
+Two targets, target 1 followed, target 2 ranged from the robot and from target 1:
+
+>>> import io
+>>> from rangekit.io.tracklog import read_measurement_log
+>>> rows = ["t_s,kind,a,b,x_m,y_m,heading_rad,var_x_m2,var_y_m2,cov_xy_m2,range_m,sigma_m"]
+>>> for k in range(8):
+...     t = 3.0 * k
+...     rows += [f"{t},robot,,,{0.4 * t},0,0,0.0036,0.0036,0,,",
+...              f"{t},fix,,1,1.2,0,,0.01,0.01,0,,",
+...              f"{t},range,0,2,,,,,,,{((0.4 * t - 0.4 * t) ** 2 + 9) ** 0.5},0.1",
+...              f"{t},range,1,2,,,,,,,{(1.2 ** 2 + 9) ** 0.5},0.1"]
+>>> log = read_measurement_log(io.StringIO("\\n".join(rows)), name="demo")
+>>> trk = track_ranges(log, accel_psd=0.05)
+>>> trk.n_targets, trk.t_s.size, trk.n_hypotheses
+(2, 8, 8)
+>>> bool(abs(trk.position(2)[-1, 1]) > 2.5)   # 3 m to the side of the path
+True
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from rangekit._validate import in_range, positive, positive_int
+from rangekit.errors import InvalidParameterError, LogFormatError
+from rangekit.io.tracklog import MeasurementLog
+from rangekit.localize.ekf import chi2_gate, predict, rts_smooth, update
+
+__all__ = [
+    "RangeTrack",
+    "Rejected",
+    "cv_transition",
+    "measurement_covariance",
+    "track_ranges",
+    "track_rows",
+]
+
+KIND_ROBOT_RANGE, KIND_PAIR_RANGE, KIND_FIX_X, KIND_FIX_Y = 0, 1, 2, 3
+
+#: Log-likelihood margin (nats, 20:1) by which another hypothesis must beat the
+#: descendant of the one reported last before the filtered output switches to it.
+SWITCH_NATS = 3.0
+
+#: Prior log-odds (nats) against a target having switched to its mirror image between
+#: two epochs (p = 0.01): a fresh mirror hypothesis must out-explain its parent by this
+#: much before it ranks above it.
+MIRROR_PRIOR_NATS = 4.6
+
+
+def cv_transition(dt: float, n_targets: int, accel_psd) -> tuple[np.ndarray, np.ndarray]:
+    """Transition ``F`` and process noise ``Q`` of the constant-velocity model over ``dt``.
+
+    ``accel_psd`` is one spectral density for all targets or one per target (m²/s³).
+
+    Jiang 2018 eqs (2)–(3) with continuous white acceleration (Bar-Shalom et al. 2001,
+    §6.2.2): per target and axis ``F = [[1, dt], [0, 1]]``,
+    ``Q = q [[dt³/3, dt²/2], [dt²/2, dt]]``.
+
+    Examples
+    --------
+    >>> F, Q = cv_transition(2.0, 1, 0.5)
+    >>> F[0].tolist(), Q[0].round(4).tolist()
+    ([1.0, 0.0, 2.0, 0.0], [1.3333, 0.0, 1.0, 0.0])
+    """
+    blk_F = np.array([[1.0, 0, dt, 0], [0, 1.0, 0, dt], [0, 0, 1.0, 0], [0, 0, 0, 1.0]])
+    blk_Q = np.array([[dt**3 / 3, 0, dt**2 / 2, 0], [0, dt**3 / 3, 0, dt**2 / 2],
+                      [dt**2 / 2, 0, dt, 0], [0, dt**2 / 2, 0, dt]])  # fmt: skip
+    q = np.broadcast_to(np.asarray(accel_psd, dtype=np.float64), (n_targets,))
+    return np.kron(np.eye(n_targets), blk_F), np.kron(np.diag(q), blk_Q)
+
+
+# --------------------------------------------------------------------------- epochs
+@dataclass(frozen=True)
+class _Epochs:
+    """The log flattened for the kernel: rows grouped by epoch (time)."""
+
+    t_s: np.ndarray  # (n_ev,)
+    start: np.ndarray  # (n_ev + 1,)
+    kind: np.ndarray
+    a: np.ndarray  # 0-based target index (-1 for the robot / unused)
+    b: np.ndarray  # 0-based target index
+    val: np.ndarray
+    var: np.ndarray
+    cov: np.ndarray
+    robot_xy: np.ndarray  # (n_ev, 2)
+    robot_P: np.ndarray  # (n_ev, 2, 2)
+    row_t: np.ndarray  # time of each row, for the rejection log
+
+
+def _epochs(log: MeasurementLog, name: str) -> _Epochs:
+    R, F, G = log.robot, log.fixes, log.ranges
+    usable = np.isfinite(G.range_m)
+    times = np.unique(np.concatenate([F.t_s, G.t_s[usable]]))
+    if times.size == 0:
+        raise LogFormatError(f"{name}: no usable range (every range_m is empty)")
+    ridx = np.searchsorted(R.t_s, times, side="right") - 1
+    needs_robot = np.zeros(times.size, dtype=bool)
+    needs_robot[np.searchsorted(times, F.t_s)] = True
+    robot_rows = usable & (G.a == 0)
+    needs_robot[np.searchsorted(times, G.t_s[robot_rows])] = True
+    bad = needs_robot & (ridx < 0)
+    if np.any(bad):
+        raise LogFormatError(
+            f"{name}: a fix or robot range at t_s={times[bad][0]:g} comes before the first "
+            "robot pose (robot rows must come first)"
+        )
+    ridx = np.maximum(ridx, 0)
+    robot_xy = R.xy_m[ridx] if R.t_s.size else np.zeros((times.size, 2))
+    robot_P = R.cov_m2[ridx] if R.t_s.size else np.zeros((times.size, 2, 2))
+    heading = R.heading_rad[ridx] if R.t_s.size else np.zeros(times.size)
+
+    per: list[list[tuple]] = [[] for _ in range(times.size)]
+    for i in range(F.t_s.size):
+        e = int(np.searchsorted(times, F.t_s[i]))
+        c, s = math.cos(heading[e]), math.sin(heading[e])
+        rot = np.array([[c, -s], [s, c]])
+        w = robot_xy[e] + rot @ F.rel_m[i]
+        Rw = rot @ F.cov_m2[i] @ rot.T
+        j = int(F.target[i]) - 1
+        per[e].append((KIND_FIX_X, -1, j, w[0], Rw[0, 0], Rw[0, 1], F.t_s[i]))
+        per[e].append((KIND_FIX_Y, -1, j, w[1], Rw[1, 1], 0.0, F.t_s[i]))
+    for i in np.flatnonzero(usable):
+        e = int(np.searchsorted(times, G.t_s[i]))
+        kind = KIND_ROBOT_RANGE if G.a[i] == 0 else KIND_PAIR_RANGE
+        var = float(G.sigma_m[i]) ** 2
+        if var <= 0:
+            raise LogFormatError(f"{name}: a range at t_s={G.t_s[i]:g} has sigma_m = 0")
+        per[e].append((kind, int(G.a[i]) - 1, int(G.b[i]) - 1, G.range_m[i], var, 0.0, G.t_s[i]))
+    start = np.zeros(times.size + 1, dtype=np.int64)
+    start[1:] = np.cumsum([len(p) for p in per])
+    flat = [r for p in per for r in p]
+    col = list(zip(*flat, strict=True))
+    return _Epochs(
+        times,
+        start,
+        np.array(col[0], dtype=np.int64),
+        np.array(col[1], dtype=np.int64),
+        np.array(col[2], dtype=np.int64),
+        np.array(col[3], dtype=np.float64),
+        np.array(col[4], dtype=np.float64),
+        np.array(col[5], dtype=np.float64),
+        np.ascontiguousarray(robot_xy, dtype=np.float64),
+        np.ascontiguousarray(robot_P, dtype=np.float64),
+        np.array(col[6], dtype=np.float64),
+    )
+
+
+# --------------------------------------------------------------------------- noise model
+def measurement_covariance(
+    kind, target_b, robot_xy, robot_P, x, var, cov, *, cross_sign: str = "physical"
+) -> np.ndarray:
+    """The covariance ``R(k)`` of one epoch's measurement vector (Jiang 2018 eqs (7)–(13)).
+
+    Parameters
+    ----------
+    kind : array_like of int, shape (m,)
+        Row kinds: 0 robot range to ``target_b``, 1 target-target range, 2 / 3 the x / y of
+        a fix of ``target_b`` (adjacent rows).
+    target_b : array_like of int, shape (m,)
+        0-based index of the ranged or fixed target.
+    robot_xy : array_like, shape (2,)
+        Robot position estimate.
+    robot_P : array_like, shape (2, 2)
+        Its covariance ``P_r``.
+    x : array_like, shape (4N,)
+        The predicted state (the robot ranges are linearised there).
+    var : array_like, shape (m,)
+        Own noise variance of each row (``σ_d²`` for ranges, ``R_f + ...`` for fixes).
+    cov : array_like, shape (m,)
+        For a fix x-row, the covariance of its x and y noise; ignored otherwise.
+    cross_sign : {"physical", "paper"}
+        Sign of the robot-error term of robot ranges (see the module docstring).
+
+    Returns
+    -------
+    ndarray, shape (m, m)
+        ``G P_r G^T + N``: for two targets with rows (d_r2, d_12, ξ_t1) this is eq (13),
+        with ``σ_r2² = H_r2,2 P_r H_r2,2^T + σ_d²`` (7), ``σ_12² = σ_d²`` (9),
+        ``R_t1 = P_r + R_f`` (11) and ``R_r2,t1 = ∓H_r2,2 P_r`` (12).
+
+    Examples
+    --------
+    Robot at the origin, target 2 at (3, 4), P_r = 0.01 I, σ_d = 0.1, R_f = 0.04 I:
+
+    >>> import numpy as np
+    >>> x = np.array([1.0, 0, 0, 0, 3.0, 4.0, 0, 0])
+    >>> R = measurement_covariance([0, 1, 2, 3], [1, 1, 0, 0], [0, 0], 0.01 * np.eye(2), x,
+    ...                            [0.01, 0.01, 0.04, 0.04], [0, 0, 0, 0])
+    >>> R[0].round(4).tolist(), R[1].round(4).tolist()
+    ([0.02, 0.0, 0.006, 0.008], [0.0, 0.01, 0.0, 0.0])
+    >>> R[2:].round(4).tolist()
+    [[0.006, 0.0, 0.05, 0.0], [0.008, 0.0, 0.0, 0.05]]
+    """
+    kind = np.asarray(kind, dtype=np.int64)
+    tb = np.asarray(target_b, dtype=np.int64)
+    rxy = np.asarray(robot_xy, dtype=np.float64)
+    Pr = np.asarray(robot_P, dtype=np.float64)
+    x = np.asarray(x, dtype=np.float64)
+    var = np.asarray(var, dtype=np.float64)
+    cov = np.asarray(cov, dtype=np.float64)
+    sign = _sign(cross_sign)
+    m = kind.size
+    G = np.zeros((m, 2))
+    N = np.diag(var)
+    for r in range(m):
+        if kind[r] == KIND_ROBOT_RANGE:
+            u = x[4 * tb[r] : 4 * tb[r] + 2] - rxy
+            G[r] = sign * u / np.linalg.norm(u)
+        elif kind[r] in (KIND_FIX_X, KIND_FIX_Y):
+            G[r, kind[r] - 2] = 1.0
+            if kind[r] == KIND_FIX_X and r + 1 < m and kind[r + 1] == KIND_FIX_Y:
+                N[r, r + 1] = N[r + 1, r] = cov[r]
+    return G @ Pr @ G.T + N
+
+
+def _sign(cross_sign: str) -> float:
+    if cross_sign not in ("physical", "paper"):
+        raise InvalidParameterError(f"cross_sign={cross_sign!r} must be 'physical' or 'paper'")
+    return 1.0 if cross_sign == "physical" else -1.0
+
+
+# --------------------------------------------------------------------------- initialisation
+def _hypotheses(ep: _Epochs, e: int, n_targets: int, n_ring: int, sigma_v: float):
+    """Initial (x0, P0) hypotheses at epoch e, or None if some target cannot start there."""
+    lo, hi = ep.start[e], ep.start[e + 1]
+    Pr = ep.robot_P[e]
+    rxy = ep.robot_xy[e]
+    fixed: dict[int, tuple[np.ndarray, np.ndarray]] = {}
+    for r in range(lo, hi):
+        if ep.kind[r] == KIND_FIX_X:
+            j = int(ep.b[r])
+            mean = np.array([ep.val[r], ep.val[r + 1]])
+            Rw = np.array([[ep.var[r], ep.cov[r]], [ep.cov[r], ep.var[r + 1]]])
+            fixed[j] = (mean, Rw + Pr)
+    options: list[list[tuple[np.ndarray, np.ndarray]]] = []
+    for j in range(n_targets):
+        if j in fixed:
+            options.append([fixed[j]])
+            continue
+        anchors = []  # (centre, radius, variance)
+        for r in range(lo, hi):
+            if ep.b[r] != j:
+                continue
+            if ep.kind[r] == KIND_ROBOT_RANGE:
+                anchors.append((rxy, ep.val[r], ep.var[r] + np.trace(Pr) / 2))
+            elif ep.kind[r] == KIND_PAIR_RANGE and int(ep.a[r]) in fixed:
+                m_a, P_a = fixed[int(ep.a[r])]
+                anchors.append((m_a, ep.val[r], ep.var[r] + np.trace(P_a) / 2))
+        if not anchors:
+            return None
+        # n_ring points on the circle of the most precise range; the other ranges of
+        # the epoch then weigh them in the first update (a two-circle intersection is
+        # ill-conditioned when the anchors are 1-1.5 m apart and the target 3-6 m away).
+        c, rad, var_r = min(anchors, key=lambda a: a[2])
+        var_t = (rad * math.pi / n_ring) ** 2 + var_r
+        opts = []
+        for ang in 2 * np.pi * (np.arange(n_ring) + 0.5) / n_ring:
+            u = np.array([math.cos(ang), math.sin(ang)])
+            v = np.array([-u[1], u[0]])
+            opts.append((c + rad * u, var_r * np.outer(u, u) + var_t * np.outer(v, v)))
+        options.append(opts)
+    hyps = []
+    for combo in itertools.product(*options):
+        x0 = np.zeros(4 * n_targets)
+        P0 = np.zeros((4 * n_targets, 4 * n_targets))
+        for j, (mean, cov) in enumerate(combo):
+            x0[4 * j : 4 * j + 2] = mean
+            P0[4 * j : 4 * j + 2, 4 * j : 4 * j + 2] = cov
+            P0[4 * j + 2, 4 * j + 2] = P0[4 * j + 3, 4 * j + 3] = sigma_v**2
+        hyps.append((x0, P0))
+    return hyps
+
+
+# --------------------------------------------------------------------------- engines
+class _Ctx:
+    """Everything an epoch step needs besides the state (one per track_ranges call)."""
+
+    def __init__(self, ep, q, sign, thr, relock, sigma_v0):
+        self.ep, self.q, self.sign, self.thr = ep, q, sign, thr
+        self.relock, self.sigma_v0 = relock, sigma_v0
+        self.kind = ep.kind
+        self.a0 = np.maximum(ep.a, 0)
+        n_rows = ep.kind.size
+        self.acc = np.zeros(n_rows, dtype=np.bool_)
+        self.nis = np.full(n_rows, np.nan)
+        self.inno = np.full(n_rows, np.nan)
+
+
+def _step_compiled(c: _Ctx, x, P, streak, dt, e):
+    """One epoch with the compiled kernel. Returns (x, P, xp, Pp, ll, n_reinit, acc, nis)
+    with acc and nis for the epoch's rows; ``streak`` is updated in place."""
+    from rangekit.localize._kernels import epoch_step
+
+    ep = c.ep
+    x, P = x.copy(), P.copy()
+    xp, Pp = np.empty_like(x), np.empty_like(P)
+    ll, n_re = epoch_step(
+        x, P, xp, Pp, dt, e, ep.start, c.kind, c.a0, ep.b, ep.val, ep.var, ep.cov,
+        ep.robot_xy, ep.robot_P, c.q, c.sign, c.thr, KIND_PAIR_RANGE, c.relock, c.sigma_v0,
+        streak, c.acc, c.nis, c.inno,
+    )  # fmt: skip
+    lo, hi = ep.start[e], ep.start[e + 1]
+    return x, P, xp, Pp, ll, n_re, c.acc[lo:hi].copy(), c.nis[lo:hi].copy()
+
+
+def _h_rows(ep: _Epochs, rows: np.ndarray, rxy: np.ndarray):
+    """Measurement function over the given rows, for the numpy reference engine."""
+
+    def h(x: np.ndarray):
+        zh = np.empty(rows.size)
+        H = np.zeros((rows.size, x.size))
+        for p, r in enumerate(rows):
+            ob = 4 * ep.b[r]
+            if ep.kind[r] in (KIND_ROBOT_RANGE, KIND_PAIR_RANGE):
+                anchor = rxy if ep.kind[r] == KIND_ROBOT_RANGE else x[4 * ep.a[r] : 4 * ep.a[r] + 2]
+                diff = x[ob : ob + 2] - anchor
+                dist = float(np.hypot(*diff))
+                zh[p] = dist
+                H[p, ob : ob + 2] = diff / dist
+                if ep.kind[r] == KIND_PAIR_RANGE:
+                    H[p, 4 * ep.a[r] : 4 * ep.a[r] + 2] = -diff / dist
+            else:
+                c = ep.kind[r] - KIND_FIX_X
+                zh[p] = x[ob + c]
+                H[p, ob + c] = 1.0
+        return zh, H
+
+    return h
+
+
+def _update_numpy(c: _Ctx, e, x, P, thr):
+    ep = c.ep
+    rows = np.arange(ep.start[e], ep.start[e + 1])
+    zh, H = _h_rows(ep, rows, ep.robot_xy[e])(x)
+    cross = "physical" if c.sign > 0 else "paper"
+    R = measurement_covariance(
+        ep.kind[rows], ep.b[rows], ep.robot_xy[e], ep.robot_P[e], x, ep.var[rows],
+        ep.cov[rows], cross_sign=cross,
+    )  # fmt: skip
+    S = H @ P @ H.T + R
+    y = ep.val[rows] - zh
+    marg = y**2 / np.diag(S)
+    keep = ~((ep.kind[rows] <= KIND_PAIR_RANGE) & (marg > thr))
+    lk = -0.5 * float(np.sum(thr + np.log(np.diag(S)[~keep]) + np.log(2 * np.pi)))
+    if np.any(keep):
+        kept = rows[keep]
+        res = update(x, P, ep.val[kept], _h_rows(ep, kept, ep.robot_xy[e]), R[np.ix_(keep, keep)])
+        x, P = res.x, res.P
+        _, logdet = np.linalg.slogdet(res.S)
+        lk -= 0.5 * (res.nis + logdet + kept.size * np.log(2 * np.pi))
+    return x, P, lk, rows, keep, marg, y
+
+
+def _step_numpy(c: _Ctx, x, P, streak, dt, e):
+    """Reference for :func:`_step_compiled`: the validated core (:func:`predict`,
+    :func:`update`) and the same lock-out breaker, in plain numpy."""
+    ep = c.ep
+    n_t = x.size // 4
+    F, Q = cv_transition(dt, n_t, c.q)
+    xp, Pp = predict(x, P, F, Q)
+    x, P, ll, rows, keep, marg, y = _update_numpy(c, e, xp, Pp, c.thr)
+    Pp = Pp.copy()
+    n_re = 0
+    for j in range(n_t):
+        kr = ep.kind[rows]
+        ranges = (kr <= KIND_PAIR_RANGE) & (
+            (ep.b[rows] == j) | ((kr == KIND_PAIR_RANGE) & (ep.a[rows] == j))
+        )
+        if not np.any(ranges):
+            continue
+        if np.any(keep[ranges]):
+            streak[j] = 0
+            continue
+        streak[j] += 1
+        if streak[j] >= c.relock:
+            worst = float(np.max(y[ranges] ** 2))
+            i = 4 * j + np.arange(2)
+            Pp[i, i] += worst
+            Pp[i + 2, i + 2] += c.sigma_v0**2
+            streak[j] = 0
+            n_re += 1
+    if n_re:
+        x, P, ll, rows, keep, marg, y = _update_numpy(c, e, xp, Pp, np.inf)
+    return x, P, xp, Pp, ll, n_re, keep, marg
+
+
+def _mirror_map(ep: _Epochs, e: int, n_t: int, x: np.ndarray) -> list[np.ndarray]:
+    """Reflections of the state for the targets ranged from two known points at epoch e.
+
+    A target ranged from the robot and from a target with a fix is determined by the two
+    ranges only up to its mirror image in the line through them (Jiang 2018 §4.4.3: the
+    density is multi-modal). Returns one transform T (d, d) per such target: it reflects
+    that target's position (about the line) and velocity, and leaves the rest.
+    """
+    lo, hi = ep.start[e], ep.start[e + 1]
+    fixes = {int(ep.b[r]): (ep.val[r], ep.val[r + 1]) for r in range(lo, hi) if ep.kind[r] == 2}
+    robot_ranged = {int(ep.b[r]) for r in range(lo, hi) if ep.kind[r] == KIND_ROBOT_RANGE}
+    out = []
+    for j in range(n_t):
+        if j in fixes or j not in robot_ranged:
+            continue
+        partner = [
+            int(ep.a[r]) for r in range(lo, hi)
+            if ep.kind[r] == KIND_PAIR_RANGE and ep.b[r] == j and int(ep.a[r]) in fixes
+        ]  # fmt: skip
+        if not partner:
+            continue
+        p0 = ep.robot_xy[e]
+        u = np.asarray(fixes[partner[0]]) - p0
+        nu = float(np.hypot(*u))
+        if nu < 1e-6:
+            continue
+        u /= nu
+        M = 2 * np.outer(u, u) - np.eye(2)
+        T = np.eye(x.size)
+        o = 4 * j
+        T[o : o + 2, o : o + 2] = M
+        T[o + 2 : o + 4, o + 2 : o + 4] = M
+        shift = np.zeros(x.size)
+        shift[o : o + 2] = p0 - M @ p0
+        out.append((T, shift, o))
+    return out
+
+
+@dataclass
+class _Hyp:
+    x: np.ndarray
+    P: np.ndarray
+    streak: np.ndarray
+    cum: float
+    slot: int  # row in the history arrays
+
+
+def _run_bank(c: _Ctx, e0: int, hyps, step, *, n_keep: int, mirror: bool):
+    """Filter with a bank of Gaussian hypotheses: start from ``hyps``; at every epoch
+    each hypothesis also spawns its mirror images (``mirror=True``), every candidate is
+    updated, and the ``n_keep`` with the highest cumulative likelihood survive
+    (candidates whose positions lie within 0.25 m of a better one are dropped).
+
+    Returns per-epoch arrays of the best hypothesis (causal) and the lineage of the final
+    best (for smoothing).
+    """
+    ep = c.ep
+    n = ep.t_s.size - e0
+    n_t = hyps[0][0].size // 4
+    bank = [_Hyp(x0, P0, np.zeros(n_t, dtype=np.int64), 0.0, -1) for x0, P0 in hyps]
+    hist: list[list[tuple]] = []  # per epoch: list of (x, P, xp, Pp, parent, ll, acc, nis)
+    t = ep.t_s[e0]
+    best_idx = np.zeros(n, dtype=np.int64)
+    reported = 0
+    n_reinit = np.zeros(n, dtype=np.int64)
+    for k in range(n):
+        e = e0 + k
+        dt = ep.t_s[e] - t
+        t = ep.t_s[e]
+        cands = []
+        for h in bank:
+            variants = [(h.x, h.P, 0.0)]
+            if mirror:
+                for T, shift, o in _mirror_map(ep, e, n_t, h.x):
+                    xm = T @ h.x + shift
+                    if np.hypot(*(xm[o : o + 2] - h.x[o : o + 2])) > 0.25:
+                        variants.append((xm, T @ h.P @ T.T, MIRROR_PRIOR_NATS))
+            for xv, Pv, penalty in variants:
+                streak = h.streak.copy()
+                x, P, xp, Pp, ll, n_re, acc, nis = step(c, xv, Pv, streak, dt, e)
+                cum = h.cum + ll - penalty
+                cands.append((cum, x, P, xp, Pp, streak, h.slot, ll, acc, nis, n_re))
+        cands.sort(key=lambda r: -r[0])
+        kept = []
+        for cd in cands:
+            pos = cd[1].reshape(-1, 4)[:, :2]
+            if any(np.max(np.hypot(*(pos - kk[1].reshape(-1, 4)[:, :2]).T)) < 0.25 for kk in kept):
+                continue
+            kept.append(cd)
+            if len(kept) == n_keep:
+                break
+        hist.append([(cd[1], cd[2], cd[3], cd[4], cd[6], cd[7], cd[8], cd[9]) for cd in kept])
+        # report the best hypothesis, but stay with the descendant of the one reported
+        # last unless the best beats it by more than SWITCH_NATS (no flapping between
+        # mirror images that explain the ranges equally well)
+        rep = 0
+        if k > 0:
+            desc = [i for i, cd in enumerate(kept) if cd[6] == reported]
+            if desc and kept[0][0] - kept[desc[0]][0] < SWITCH_NATS:
+                rep = desc[0]
+        reported = rep
+        best_idx[k] = rep
+        bank = [_Hyp(cd[1], cd[2], cd[5], cd[0], i) for i, cd in enumerate(kept)]
+        n_reinit[k] = kept[rep][10]
+    # causal output: the reported hypothesis of each epoch; lineage of the final best
+    xs = np.stack([h[best_idx[k]][0] for k, h in enumerate(hist)])
+    Ps = np.stack([h[best_idx[k]][1] for k, h in enumerate(hist)])
+    ll = np.array([h[best_idx[k]][5] for k, h in enumerate(hist)])
+    lineage = np.empty(n, dtype=np.int64)
+    slot = 0
+    for k in range(n - 1, -1, -1):
+        lineage[k] = slot
+        slot = hist[k][slot][4]
+    line = [hist[k][lineage[k]] for k in range(n)]
+    acc_rows = [h[best_idx[k]][6] for k, h in enumerate(hist)]
+    nis_rows = [h[best_idx[k]][7] for k, h in enumerate(hist)]
+    smooth_in = (
+        np.stack([r[0] for r in line]),
+        np.stack([r[1] for r in line]),
+        np.stack([r[2] for r in line]),
+        np.stack([r[3] for r in line]),
+    )
+    return xs, Ps, ll, best_idx, acc_rows, nis_rows, smooth_in, n_reinit
+
+
+# --------------------------------------------------------------------------- results
+@dataclass(frozen=True)
+class Rejected:
+    """A range the innovation gate rejected (likely non-line-of-sight, Jiang 2018 §5.4.3)."""
+
+    t_s: float
+    a: int
+    b: int
+    range_m: float
+    nis: float
+
+
+@dataclass(frozen=True)
+class RangeTrack:
+    """The output of :func:`track_ranges`.
+
+    Attributes
+    ----------
+    t_s : ndarray, shape (n,)
+        Epoch times (every time with a range or fix, from the first epoch at which all
+        targets could be initialised).
+    x, P : ndarray, shapes (n, 4N), (n, 4N, 4N)
+        Filtered means and covariances (state ``[x, y, vx, vy]`` per target).
+    x_smooth, P_smooth : ndarray or None
+        RTS-smoothed means and covariances (when ``smooth=True``).
+    n_hypotheses : int
+        Number of initial hypotheses.
+    loglik : ndarray, shape (n,)
+        Measurement log-likelihood of each epoch of the reported hypothesis.
+    rejected : list of Rejected
+        Ranges rejected by the gate (in the reported hypothesis at their epoch).
+    n_reinit : ndarray of int, shape (n,)
+        Targets re-opened by the lock-out breaker at each epoch (reported hypothesis).
+    n_skipped : int
+        Epochs before the first one at which every target could be initialised.
+    n_targets : int
+    """
+
+    t_s: np.ndarray
+    x: np.ndarray
+    P: np.ndarray
+    x_smooth: np.ndarray | None
+    P_smooth: np.ndarray | None
+    n_hypotheses: int
+    loglik: np.ndarray
+    rejected: list[Rejected]
+    n_reinit: np.ndarray
+    n_skipped: int
+    n_targets: int
+
+    def _check(self, target: int) -> slice:
+        if not 1 <= target <= self.n_targets:
+            raise InvalidParameterError(f"target={target} must be in 1..{self.n_targets}")
+        return slice(4 * (target - 1), 4 * (target - 1) + 2)
+
+    def position(self, target: int, *, smoothed: bool = False) -> np.ndarray:
+        """Positions (n, 2) of target ``target`` (1-based), filtered or smoothed."""
+        s = self._check(target)
+        return self._pick(smoothed)[0][:, s]
+
+    def position_cov(self, target: int, *, smoothed: bool = False) -> np.ndarray:
+        """Position covariances (n, 2, 2) of target ``target``."""
+        s = self._check(target)
+        return self._pick(smoothed)[1][:, s, s]
+
+    def sqrt_det_p(self, target: int, *, smoothed: bool = False) -> np.ndarray:
+        """``sqrt(det P_t)`` of the position covariance (m²), Jiang 2018 Figs 9c–11c."""
+        return np.sqrt(np.linalg.det(self.position_cov(target, smoothed=smoothed)))
+
+    def _pick(self, smoothed: bool):
+        if smoothed:
+            if self.x_smooth is None:
+                raise InvalidParameterError("this track was not smoothed (use smooth=True)")
+            return self.x_smooth, self.P_smooth
+        return self.x, self.P
+
+
+def track_ranges(
+    log: MeasurementLog,
+    *,
+    accel_psd: float | Sequence[float] = 0.05,
+    gate: float | None = 0.999,
+    cross_sign: str = "physical",
+    smooth: bool = False,
+    sigma_v0: float = 1.0,
+    n_ring: int = 8,
+    max_hypotheses: int = 64,
+    relock: int = 3,
+    n_keep: int = 8,
+    mirror: bool = True,
+    engine: str = "compiled",
+    name: str = "log",
+) -> RangeTrack:
+    """Track N targets from a measurement log with the EKF of Jiang 2018 (Algorithm 2).
+
+    Parameters
+    ----------
+    log : MeasurementLog
+        From :func:`rangekit.io.tracklog.read_measurement_log` or a simulator.
+    accel_psd : float or sequence of float
+        Spectral density of the targets' white acceleration, m²/s³ per axis (> 0): one
+        for all targets or one per target. Default 0.05 (walking people;
+        ``docs/theory/jiang2018.md``).
+    gate : float or None
+        Gate probability for each range (chi-square, 1 dof), default 0.999; None: no gate.
+    cross_sign : {"physical", "paper"}
+        Sign of the robot-pose cross-covariance of eq (12) (module docstring).
+    smooth : bool
+        Also compute the RTS-smoothed track (offline logs).
+    sigma_v0 : float
+        Prior 1-sigma of every initial velocity component (m/s, > 0). Default 1.0.
+    n_ring : int
+        Initial hypotheses on the range circle of a target without a fix (>= 2).
+    max_hypotheses : int
+        Refuse logs whose start needs more initial hypotheses than this.
+    relock : int
+        After this many consecutive epochs in which the gate rejected every range of a
+        target, its covariance is inflated and the epoch re-run without the gate (the
+        filter had lost the target; see :mod:`rangekit.localize._kernels`). Default 3.
+    n_keep : int
+        Hypotheses kept after each epoch (>= 1; default 8).
+    mirror : bool
+        At every epoch also try the mirror image of each target ranged from the robot and
+        a fixed target, in the line through them (default True). Two ranges from anchors
+        1–1.5 m apart fix a target only up to this reflection, and a single EKF that
+        follows the wrong branch when the target crosses the line never returns.
+    engine : {"compiled", "numpy"}
+        The numba loop (default) or the plain-numpy reference built on
+        :func:`rangekit.localize.ekf.update` (slow; for checking).
+    name : str
+        How the log is named in error messages.
+
+    Returns
+    -------
+    RangeTrack
+
+    Raises
+    ------
+    InvalidParameterError
+        Bad parameter values.
+    LogFormatError
+        The log cannot be tracked: no usable range, fixes before the first robot pose,
+        a target never initialisable, too many initial hypotheses.
+    """
+    q_in = np.atleast_1d(np.asarray(accel_psd, dtype=np.float64))
+    q_list = [positive("accel_psd", float(v)) for v in q_in]
+    thr = math.inf if gate is None else chi2_gate(in_range("gate", gate, 0.0, 1.0), 1)
+    sign = _sign(cross_sign)
+    sigma_v0 = positive("sigma_v0", sigma_v0)
+    n_ring = positive_int("n_ring", n_ring, minimum=2)
+    max_hypotheses = positive_int("max_hypotheses", max_hypotheses)
+    relock = positive_int("relock", relock)
+    n_keep = positive_int("n_keep", n_keep)
+    if engine not in ("compiled", "numpy"):
+        raise InvalidParameterError(f"engine={engine!r} must be 'compiled' or 'numpy'")
+    ep = _epochs(log, name)
+    n_t = log.n_targets
+    if len(q_list) not in (1, n_t):
+        raise InvalidParameterError(
+            f"accel_psd has {len(q_list)} values; give one or one per target ({n_t})"
+        )
+    q = np.ascontiguousarray(np.broadcast_to(np.array(q_list), (n_t,)))
+    e0 = 0
+    hyps = None
+    while e0 < ep.t_s.size:
+        hyps = _hypotheses(ep, e0, n_t, n_ring, sigma_v0)
+        if hyps is not None:
+            break
+        e0 += 1
+    if hyps is None:
+        raise LogFormatError(
+            f"{name}: no epoch has a fix or a range to a known point for every target, so the "
+            "tracker cannot start (each target needs a fix, or a range to the robot or to a "
+            "fixed target, at one time)"
+        )
+    if len(hyps) > max_hypotheses:
+        raise LogFormatError(
+            f"{name}: starting needs {len(hyps)} initial hypotheses (> max_hypotheses="
+            f"{max_hypotheses}); give fixes or more ranges at the first epoch"
+        )
+    ctx = _Ctx(ep, q, sign, thr, relock, sigma_v0)
+    step = _step_compiled if engine == "compiled" else _step_numpy
+    xs, Ps, ll, _, acc_rows, nis_rows, smooth_in, n_reinit = _run_bank(
+        ctx, e0, hyps, step, n_keep=max(n_keep, 1), mirror=mirror
+    )
+    rejected = []
+    for kk, e in enumerate(range(e0, ep.t_s.size)):
+        for i, r in enumerate(range(ep.start[e], ep.start[e + 1])):
+            if ep.kind[r] <= KIND_PAIR_RANGE and not acc_rows[kk][i]:
+                rejected.append(
+                    Rejected(float(ep.row_t[r]), int(ep.a[r]) + 1, int(ep.b[r]) + 1,
+                             float(ep.val[r]), float(nis_rows[kk][i]))
+                )  # fmt: skip
+    xsm = Psm = None
+    if smooth:
+        Fs = np.stack([cv_transition(dt, n_t, q)[0] for dt in np.diff(ep.t_s[e0:])])
+        Fs = Fs.reshape(-1, 4 * n_t, 4 * n_t)
+        xsm, Psm = rts_smooth(*smooth_in, Fs)
+    return RangeTrack(ep.t_s[e0:], xs, Ps, xsm, Psm, len(hyps), ll, rejected, n_reinit, e0, n_t)
+
+
+#: Columns of a track file written by :func:`track_rows` (``docs/formats.md``).
+TRACK_COLUMNS = (
+    "t_s", "target", "x_m", "y_m", "vx_mps", "vy_mps", "var_x_m2", "var_y_m2", "cov_xy_m2",
+)  # fmt: skip
+
+
+def track_rows(track: RangeTrack, *, smoothed: bool = False) -> tuple[list[str], np.ndarray]:
+    """The track as a table: one row per epoch and target (columns :data:`TRACK_COLUMNS`).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> trk = RangeTrack(np.array([0.0]), np.arange(4.0)[None], np.eye(4)[None], None,
+    ...                  None, 1, np.zeros(1), [], np.zeros(1, int), 0, 1)
+    >>> cols, rows = track_rows(trk)
+    >>> rows.tolist()
+    [[0.0, 1.0, 0.0, 1.0, 2.0, 3.0, 1.0, 1.0, 0.0]]
+    """
+    xs, Ps = track._pick(smoothed)
+    out = []
+    for k in range(track.t_s.size):
+        for j in range(track.n_targets):
+            o = 4 * j
+            out.append(
+                [track.t_s[k], j + 1, *xs[k, o : o + 4], Ps[k, o, o], Ps[k, o + 1, o + 1],
+                 Ps[k, o, o + 1]]
+            )  # fmt: skip
+    return list(TRACK_COLUMNS), np.array(out, dtype=np.float64).reshape(-1, len(TRACK_COLUMNS))
