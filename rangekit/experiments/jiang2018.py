@@ -1,0 +1,195 @@
+"""Jiang 2018 §5 reproduced: Table 1 (steady-state errors of both targets) and the atrium.
+
+Each condition (noise level × walking speed in the lab/office, and the atrium) runs
+``trials`` simulated walks (:func:`rangekit.sim.jiang2018.simulate` with the paper's
+settings, :func:`~rangekit.sim.jiang2018.paper_settings`), tracks them with
+:func:`rangekit.localize.range_ekf.track_ranges` (filter and RTS smoother) and reduces
+each trial to its **steady-state error**: the mean position error of a target over the
+epochs after convergence (18 s in the lab, 12 s in the atrium, §5.3). Like the paper
+(§5.4.1: "the steady state estimation error of each trial ... was used to calculate the
+median and 90th percentile error"), the table gives the median and 90th percentile of
+these per-trial errors. Also reported: the average NEES of target 2's position (2 dof,
+consistent = 2), the time from which target 2 stays within 1.5 m (the paper converges in
+15–18 s) with the share of trials that get there, and the share of gated ranges.
+
+Reproduce with ``rangekit experiment jiang2018 --trials N --seed S``; numbers and their
+discussion are in ``docs/theory/jiang2018.md``.
+
+Examples
+--------
+>>> rep = run(trials=1, seed=0)
+>>> row = rep.find("median error", "target 2, moderate noise, 0.4 m/s, filter")
+>>> row.paper, row.unit
+(0.85, 'm')
+"""
+
+from __future__ import annotations
+
+import pathlib
+from dataclasses import dataclass
+
+import numpy as np
+
+from rangekit import _validate as V
+from rangekit.experiments.report import ExperimentReport
+from rangekit.localize.range_ekf import RangeTrack, track_ranges
+from rangekit.sim.jiang2018 import JiangRun, paper_settings, simulate
+
+__all__ = ["CONDITIONS", "DEFAULT_TRIALS", "PAPER_TABLE1", "Condition", "run", "run_condition"]
+
+DEFAULT_TRIALS = 20
+
+#: Spectral density of the targets' white acceleration used by the tracker (m²/s³).
+ACCEL_PSD = 0.05
+
+#: Target 2 counts as converged from the epoch after which its error stays below this (m).
+CONVERGED_M = 1.5
+
+
+@dataclass(frozen=True)
+class Condition:
+    """One experimental condition: its label, simulator settings and steady-state start."""
+
+    label: str
+    case: str  # paper_settings key
+    speed_mps: float
+    steady_s: float
+
+
+CONDITIONS = (
+    Condition("moderate noise, 0.4 m/s", "lab_moderate", 0.4, 18.0),
+    Condition("moderate noise, 0.8 m/s", "lab_moderate", 0.8, 18.0),
+    Condition("heavy noise, 0.4 m/s", "lab_heavy", 0.4, 18.0),
+    Condition("heavy noise, 0.8 m/s", "lab_heavy", 0.8, 18.0),
+    Condition("atrium, 0.4 m/s", "atrium", 0.4, 12.0),
+)
+
+#: Table 1 of Jiang 2018: (target, condition label) -> (median, 90th percentile) in m;
+#: the atrium numbers are the single trial of §5.3.2 (steady-state mean, no percentile).
+PAPER_TABLE1 = {
+    (1, "moderate noise, 0.4 m/s"): (0.43, 0.52),
+    (1, "moderate noise, 0.8 m/s"): (0.54, 0.58),
+    (1, "heavy noise, 0.4 m/s"): (0.51, 0.56),
+    (1, "heavy noise, 0.8 m/s"): (0.55, 0.62),
+    (2, "moderate noise, 0.4 m/s"): (0.85, 1.21),
+    (2, "moderate noise, 0.8 m/s"): (0.98, 1.72),
+    (2, "heavy noise, 0.4 m/s"): (0.93, 1.42),
+    (2, "heavy noise, 0.8 m/s"): (1.12, 1.87),
+    (1, "atrium, 0.4 m/s"): (0.51, None),
+    (2, "atrium, 0.4 m/s"): (1.37, None),
+}
+
+
+@dataclass(frozen=True)
+class TrialResult:
+    """Per-trial numbers of one condition."""
+
+    steady: dict  # (target, "filter"|"smoother") -> steady-state mean error (m)
+    nees2: float  # mean NEES of target 2's position over the steady epochs
+    t_converge_s: float  # time from which target-2 error stays < CONVERGED_M (NaN: never)
+    n_rejected: int
+    n_ranges: int
+    run: JiangRun
+    track: RangeTrack
+
+
+def _errors(track: RangeTrack, run: JiangRun, target: int, smoothed: bool) -> np.ndarray:
+    truth = run.update_targets_m[track.n_skipped :, target - 1]
+    return np.hypot(*(track.position(target, smoothed=smoothed) - truth).T)
+
+
+def _trial(cond: Condition, rng: np.random.Generator) -> TrialResult:
+    settings = paper_settings(cond.case)
+    run = simulate(**settings, speed_mps=cond.speed_mps, rng=rng)
+    trk = track_ranges(run.log, accel_psd=ACCEL_PSD, smooth=True)
+    steady = trk.t_s >= cond.steady_s
+    res = {}
+    for target in (1, 2):
+        for kind, sm in (("filter", False), ("smoother", True)):
+            res[(target, kind)] = float(np.mean(_errors(trk, run, target, sm)[steady]))
+    truth2 = run.update_targets_m[trk.n_skipped :, 1]
+    err2 = trk.position(2) - truth2
+    cov2 = trk.position_cov(2)
+    nees = np.einsum("ni,nij,nj->n", err2, np.linalg.inv(cov2), err2)
+    e2 = np.hypot(*err2.T)
+    above = np.flatnonzero(e2 >= CONVERGED_M)
+    if above.size == 0:
+        t_conv = float(trk.t_s[0])
+    elif above[-1] + 1 < e2.size:
+        t_conv = float(trk.t_s[above[-1] + 1])
+    else:
+        t_conv = float("nan")  # not within CONVERGED_M at the end of the walk
+    n_ranges = int(np.sum(np.isfinite(run.log.ranges.range_m)))
+    return TrialResult(
+        res, float(np.mean(nees[steady])), t_conv, len(trk.rejected), n_ranges, run, trk
+    )
+
+
+def run_condition(cond: Condition, trials: int, rng: np.random.Generator) -> list[TrialResult]:
+    """Simulate and track ``trials`` walks of one condition."""
+    return [_trial(cond, rng) for _ in range(trials)]
+
+
+def run(
+    *, trials: int = DEFAULT_TRIALS, seed: int = 0, plots_dir: pathlib.Path | None = None
+) -> ExperimentReport:
+    """Run every condition of Jiang 2018 §5.3–5.4 and compare with Table 1.
+
+    Parameters
+    ----------
+    trials : int
+        Monte Carlo trials per condition (>= 1; the paper ran 10).
+    seed : int
+        Seed of the whole run (each condition gets an independent stream).
+    plots_dir : path, optional
+        Write figures like the paper's Figs 9–13 there (PNG).
+
+    Returns
+    -------
+    ExperimentReport
+        Rows: median and 90th-percentile steady-state error of each target, filtered and
+        smoothed, per condition (paper values for the filter rows), NEES, convergence
+        time and gated share per condition.
+    """
+    trials = V.positive_int("trials", trials)
+    seeds = np.random.SeedSequence(seed).spawn(len(CONDITIONS))
+    rep = ExperimentReport(
+        "jiang2018",
+        "Jiang 2018 Table 1: steady-state error of targets 1 and 2 (median, p90 over trials)",
+        {"trials": trials, "seed": seed, "accel_psd": ACCEL_PSD},
+    )
+    results = {}
+    for cond, ss in zip(CONDITIONS, seeds, strict=True):
+        rs = run_condition(cond, trials, np.random.default_rng(ss))
+        results[cond.label] = rs
+        for target in (1, 2):
+            med_p, p90_p = PAPER_TABLE1[(target, cond.label)]
+            for kind in ("filter", "smoother"):
+                errs = np.array([r.steady[(target, kind)] for r in rs])
+                label = f"target {target}, {cond.label}, {kind}"
+                note = "" if kind == "filter" else "the paper only filters"
+                note_med = note
+                if cond.case == "atrium" and kind == "filter":
+                    note_med = "paper: steady-state mean of its single atrium trial (§5.3.2)"
+                rep.add("median error", label, med_p if kind == "filter" else None,
+                        np.median(errs), unit="m", note=note_med)  # fmt: skip
+                rep.add("p90 error", label, p90_p if kind == "filter" else None,
+                        np.percentile(errs, 90), unit="m", note=note)  # fmt: skip
+        rep.add("mean NEES, target 2 position (2 dof)", cond.label, None,
+                np.mean([r.nees2 for r in rs]), note="consistent: 2")  # fmt: skip
+        tc = np.array([r.t_converge_s for r in rs])
+        conv = np.isfinite(tc)
+        rep.add("median convergence time (converged trials)", cond.label,
+                12.0 if cond.case == "atrium" else 16.5,
+                np.median(tc[conv]) if np.any(conv) else np.nan, unit="s",
+                note=f"error of target 2 stays < {CONVERGED_M} m from then on; paper: "
+                "15-18 s in the lab (§5.3.1), 12 s in the atrium (§5.3.2)")  # fmt: skip
+        rep.add("trials converged", cond.label, None, 100.0 * np.mean(conv), unit="%")
+        rep.add("ranges rejected by the gate", cond.label, None,
+                100.0 * sum(r.n_rejected for r in rs) / max(1, sum(r.n_ranges for r in rs)),
+                unit="%")  # fmt: skip
+    if plots_dir is not None:
+        from rangekit.plot.jiang2018 import write_figures
+
+        write_figures(pathlib.Path(plots_dir), results)
+    return rep
