@@ -1,4 +1,5 @@
-"""State estimation: the extended Kalman filter core and the RTS smoother.
+"""State estimation: the EKF core and RTS smoother, the Jiang 2018 range tracker, and
+Ahn & Yu's dead-reckoning EKF and l_max filter.
 
 Examples
 --------
@@ -9,6 +10,7 @@ Examples
 
 from __future__ import annotations
 
+from rangekit.localize.deadreckoning import DeadReckoningResult, dead_reckon
 from rangekit.localize.ekf import (
     ExtendedKalmanFilter,
     Rejection,
@@ -19,14 +21,22 @@ from rangekit.localize.ekf import (
     rts_smooth,
     update,
 )
+from rangekit.localize.lmax import lmax_offline, lmax_online
+from rangekit.localize.range_ekf import RangeTrack, track_ranges
 
 __all__ = [
+    "DeadReckoningResult",
     "ExtendedKalmanFilter",
+    "RangeTrack",
     "Rejection",
     "UpdateResult",
     "chi2_gate",
+    "dead_reckon",
+    "lmax_offline",
+    "lmax_online",
     "numerical_jacobian",
     "predict",
     "rts_smooth",
+    "track_ranges",
     "update",
 ]
