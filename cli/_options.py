@@ -210,15 +210,23 @@ def output_option(f):
     )(f)
 
 
-def format_option(f):
-    return click.option(
-        "--format",
-        "fmt",
-        type=click.Choice(FORMATS),
-        default="table",
-        show_default=True,
-        help="Output format.",
-    )(f)
+def format_choice(choices: tuple[str, ...] = FORMATS, default: str = "table"):
+    """A ``--format`` option with the given choices (the command's output formats)."""
+
+    def deco(f):
+        return click.option(
+            "--format",
+            "fmt",
+            type=click.Choice(choices),
+            default=default,
+            show_default=True,
+            help="Output format.",
+        )(f)
+
+    return deco
+
+
+format_option = format_choice()
 
 
 def debug_option(f):

@@ -27,6 +27,8 @@ class RangekitGroup(click.Group):
         "detect": ("rangekit_cli.detect_cmd", "detect_cmd"),
         "design": ("rangekit_cli.design_cmd", "design"),
         "synth": ("rangekit_cli.synth_cmd", "synth"),
+        "track": ("rangekit_cli.track_cmd", "track_cmd"),
+        "experiment": ("rangekit_cli.experiment_cmd", "experiment_cmd"),
     }
 
     def list_commands(self, ctx):

@@ -15,8 +15,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import soundfile as sf
-from click.testing import CliRunner
-from rangekit_cli.main import cli
+from clihelp import assert_error, run
 
 from rangekit.errors import (
     AudioFormatError,
@@ -34,24 +33,6 @@ def _fixture_files(name: str) -> list[str]:
     return [str(FIXTURES / f) for f in truth["files"]]
 
 
-def _run(args, **kw):
-    return CliRunner().invoke(cli, [str(a) for a in args], prog_name="rangekit", **kw)
-
-
-def _assert_error(result, code: int, *names: str) -> str:
-    """Exit ``code``; stderr is one line ``rangekit: error: ...`` naming every ``names``."""
-    assert result.exit_code == code, (result.exit_code, result.stderr, result.exception)
-    err = result.stderr
-    assert "Traceback" not in err
-    lines = err.splitlines()
-    assert len(lines) == 1, err
-    assert err.endswith("\n")
-    assert lines[0].startswith("rangekit: error: "), err
-    for n in names:
-        assert n in lines[0], (n, err)
-    return lines[0]
-
-
 def _noise(path: Path, *, fs: int = 44100, n: int = 88200, channels: int = 1, seed: int = 0):
     rng = np.random.default_rng(seed)
     shape = (n,) if channels == 1 else (n, channels)
@@ -61,7 +42,7 @@ def _noise(path: Path, *, fs: int = 44100, n: int = 88200, channels: int = 1, se
 
 def _synth(tmp_path: Path, name: str, *extra) -> Path:
     out = tmp_path / name
-    r = _run(["synth", "beepbeep", "--seed", 5, "-o", out, *extra])
+    r = run(["synth", "beepbeep", "--seed", 5, "-o", out, *extra])
     assert r.exit_code == 0, r.stderr
     return out
 
@@ -76,26 +57,26 @@ def good_wav():
 
 def test_missing_file(tmp_path):
     missing = tmp_path / "no_such_recording.wav"
-    _assert_error(_run(["range", missing]), 3, "no_such_recording.wav")
+    assert_error(run(["range", missing]), 3, "no_such_recording.wav")
 
 
 def test_directory_as_file(tmp_path):
     d = tmp_path / "a_folder.wav"
     d.mkdir()
-    _assert_error(_run(["range", d]), 3, "a_folder.wav", "directory")
+    assert_error(run(["range", d]), 3, "a_folder.wav", "directory")
 
 
 def test_text_file_is_not_audio(tmp_path):
     f = tmp_path / "notes.wav"
     f.write_text("these are not samples\n")
-    _assert_error(_run(["range", f]), 4, "notes.wav")
+    assert_error(run(["range", f]), 4, "notes.wav")
 
 
 def test_empty_wav(tmp_path):
     f = tmp_path / "empty.wav"
     sf.write(f, np.zeros((0, 2)), 44100, subtype="PCM_16")
     assert sf.info(str(f)).frames == 0
-    _assert_error(_run(["range", f]), 4, "empty.wav")
+    assert_error(run(["range", f]), 4, "empty.wav")
 
 
 # --- incompatible inputs ---------------------------------------------------------------
@@ -103,24 +84,24 @@ def test_empty_wav(tmp_path):
 
 def test_sample_rate_too_low_for_beep(tmp_path):
     f = _noise(tmp_path / "rate16k.wav", fs=16000, n=16000, channels=2)
-    line = _assert_error(_run(["range", f]), 5, "rate16k.wav", "16000")
+    line = assert_error(run(["range", f]), 5, "rate16k.wav", "16000")
     assert "too low" in line
 
 
 def test_single_mono_file(tmp_path):
     f = _noise(tmp_path / "lonely.wav")
-    _assert_error(_run(["range", f]), 5, "lonely.wav", "channel")
+    assert_error(run(["range", f]), 5, "lonely.wav", "channel")
 
 
 def test_two_files_one_stereo(tmp_path):
     a = _noise(tmp_path / "mono_a.wav")
     b = _noise(tmp_path / "stereo_b.wav", channels=2, seed=1)
-    _assert_error(_run(["range", a, b]), 5, "stereo_b.wav", "mono")
+    assert_error(run(["range", a, b]), 5, "stereo_b.wav", "mono")
 
 
 def test_wrong_number_of_self_distances(good_wav):
-    line = _assert_error(
-        _run(["range", good_wav, "--self-distance", "0.1,0.1,0.1"]), 5, "3", "2 devices"
+    line = assert_error(
+        run(["range", good_wav, "--self-distance", "0.1,0.1,0.1"]), 5, "3", "2 devices"
     )
     assert "self-distance" in line
 
@@ -133,8 +114,8 @@ def test_three_mono_files_one_pure_noise(tmp_path):
     _synth(tmp_path, "pair.wav", "--distance", 2, "--mono")
     noise = _noise(tmp_path / "just_noise.wav", seed=3)
     files = [tmp_path / "pair_dev0.wav", tmp_path / "pair_dev1.wav", noise]
-    r = _run(["range", *files])
-    line = _assert_error(r, 6, "expected 3")
+    r = run(["range", *files])
+    line = assert_error(r, 6, "expected 3")
     assert any(f.name in line for f in files), line
 
 
@@ -142,23 +123,23 @@ def test_noise_file_in_three_device_set_is_named(tmp_path):
     """The 3-device fixture with device 1's file replaced by noise: that file is blamed."""
     f0, _, f2 = _fixture_files("beepbeep_3dev")
     noise = _noise(tmp_path / "dev1_noise.wav", seed=4)
-    _assert_error(_run(["range", f0, noise, f2]), 6, "dev1_noise.wav", "found no beep")
+    assert_error(run(["range", f0, noise, f2]), 6, "dev1_noise.wav", "found no beep")
 
 
 def test_silence_only(tmp_path):
     f = tmp_path / "silence.wav"
     sf.write(f, np.zeros((44100, 2)), 44100, subtype="PCM_16")
-    _assert_error(_run(["range", f]), 6, "silence.wav", "found no beep")
+    assert_error(run(["range", f]), 6, "silence.wav", "found no beep")
 
 
 def test_burst_spacing_mismatch(tmp_path):
     f = _synth(tmp_path, "spaced.wav", "--distance", 2, "--spacing", 4000)
-    line = _assert_error(_run(["range", f]), 6, "spaced.wav", "spacing", "4000", "5000")
+    line = assert_error(run(["range", f]), 6, "spaced.wav", "spacing", "4000", "5000")
     assert "--spacing" in line
     # With the right --spacing (and the true self-distance) the same file ranges fine.
     truth = json.loads(f.with_suffix(".json").read_text())
     sd = truth["devices"][0]["self_distance_m"]
-    ok = _run(["range", f, "--spacing", 4000, "--self-distance", sd, "--format", "json"])
+    ok = run(["range", f, "--spacing", 4000, "--self-distance", sd, "--format", "json"])
     assert ok.exit_code == 0, ok.stderr
     assert json.loads(ok.stdout)["ranges"][0]["distance_m"] == pytest.approx(
         truth["pairs"][0]["distance_m"], abs=0.01
@@ -170,16 +151,16 @@ def test_burst_spacing_mismatch(tmp_path):
 
 @pytest.mark.parametrize("temp", ["-100", "nan", "200", "inf"])
 def test_bad_temperature(good_wav, temp):
-    _assert_error(_run(["range", good_wav, "--temperature", temp]), 2, temp, "temperature")
+    assert_error(run(["range", good_wav, "--temperature", temp]), 2, temp, "temperature")
 
 
 def test_absurd_speed_of_sound(good_wav):
-    _assert_error(_run(["range", good_wav, "--speed-of-sound", "5"]), 2, "5")
+    assert_error(run(["range", good_wav, "--speed-of-sound", "5"]), 2, "5")
 
 
 def test_bad_format_choice_is_usage_error(good_wav):
-    r = _run(["range", good_wav, "--format", "xml"])
-    line = _assert_error(r, 2, "'xml'", "--format")
+    r = run(["range", good_wav, "--format", "xml"])
+    line = assert_error(r, 2, "'xml'", "--format")
     assert "rangekit range --help" in line
     assert r.stdout == ""
 
@@ -189,7 +170,7 @@ def test_bad_format_choice_is_usage_error(good_wav):
 
 def test_output_into_missing_folder(good_wav, tmp_path):
     out = tmp_path / "no_such_dir" / "out.json"
-    _assert_error(_run(["range", good_wav, "-o", out]), 3, "no_such_dir")
+    assert_error(run(["range", good_wav, "-o", out]), 3, "no_such_dir")
     assert not out.parent.exists()
 
 
@@ -202,8 +183,8 @@ def test_failed_run_leaves_existing_output_untouched(tmp_path, bad):
     else:
         f, code = tmp_path / "silence.wav", 6
         sf.write(f, np.zeros((44100, 2)), 44100, subtype="PCM_16")
-    r = _run(["range", f, "--format", "json", "-o", sentinel])
-    _assert_error(r, code, f.name)
+    r = run(["range", f, "--format", "json", "-o", sentinel])
+    assert_error(r, code, f.name)
     assert r.stdout == ""
     assert sentinel.read_text() == "SENTINEL, do not touch\n"
     assert sorted(p.name for p in tmp_path.iterdir() if p.name.startswith(".")) == []
@@ -237,7 +218,7 @@ def test_debug_propagates_exception(tmp_path, where, case, exc):
     else:
         args = ["range", *_fixture_files("beepbeep_2p5m"), "--freq", "21000"]
     args = ["--debug", *args] if where == "before" else [*args, "--debug"]
-    r = _run(args)
+    r = run(args)
     assert isinstance(r.exception, exc), (r.exception, r.stderr)
     assert r.exit_code == 1
     assert "rangekit: error:" not in r.stderr
@@ -267,8 +248,8 @@ def test_detect_silent_file_exits_6_with_header(tmp_path):
     f = tmp_path / "quiet.wav"
     sf.write(f, np.zeros((44100, 2)), 44100, subtype="PCM_16")
     for fmt in ("table", "csv"):
-        r = _run(["detect", f, "--format", fmt])
-        _assert_error(r, 6, "quiet.wav")
+        r = run(["detect", f, "--format", fmt])
+        assert_error(r, 6, "quiet.wav")
         header = r.stdout.splitlines()
         assert len(header) == 1
         assert header[0].replace(",", " ").split() == [
@@ -279,7 +260,7 @@ def test_detect_silent_file_exits_6_with_header(tmp_path):
 
 def test_detect_fixture_finds_one_beep_per_device_per_channel():
     f = _fixture_files("beepbeep_2p5m")
-    r = _run(["detect", *f, "--format", "json"])
+    r = run(["detect", *f, "--format", "json"])
     assert r.exit_code == 0, r.stderr
     rows = json.loads(r.stdout)["arrivals"]
     assert sorted((a["channel"], a["beep"]) for a in rows) == [(0, 0), (0, 1), (1, 0), (1, 1)]
@@ -287,14 +268,14 @@ def test_detect_fixture_finds_one_beep_per_device_per_channel():
 
 def test_design_beep_beyond_nyquist(tmp_path):
     out = tmp_path / "beep.wav"
-    _assert_error(_run(["design", "beep", "--freq", "21000", "-o", out]), 2, "21000")
+    assert_error(run(["design", "beep", "--freq", "21000", "-o", out]), 2, "21000")
     assert not out.exists()
 
 
 @pytest.mark.parametrize("fs", ["nan", "0", "-5", "1e9"])
 def test_design_beep_bad_file_rate(tmp_path, fs):
     out = tmp_path / "beep.wav"
-    _assert_error(_run(["design", "beep", "--fs", fs, "-o", out]), 2, "--fs")
+    assert_error(run(["design", "beep", "--fs", fs, "-o", out]), 2, "--fs")
     assert not out.exists()
 
 
@@ -310,7 +291,7 @@ def test_design_beep_writes_pcm16(tmp_path, opts):
     args = ["design", "beep", "-o", out]
     for k, v in opts.items():
         args += [f"--{k.replace('_', '-')}", v]
-    r = _run(args)
+    r = run(args)
     assert r.exit_code == 0, r.stderr
     assert r.stdout == ""
     assert "wrote" in r.stderr
@@ -326,6 +307,6 @@ def test_design_beep_writes_pcm16(tmp_path, opts):
 
 def test_synth_without_distance_or_position(tmp_path):
     out = tmp_path / "x.wav"
-    r = _run(["synth", "beepbeep", "-o", out])
-    _assert_error(r, 2, "--distance", "--position", "rangekit synth beepbeep --help")
+    r = run(["synth", "beepbeep", "-o", out])
+    assert_error(r, 2, "--distance", "--position", "rangekit synth beepbeep --help")
     assert not out.exists()

@@ -1,0 +1,109 @@
+"""``rangekit experiment``: reproduce a paper's table (paper vs measured numbers)."""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import click
+from rangekit_cli._options import debug_option, emit, format_choice, output_option
+
+#: Experiment name -> module (imported only when run). The module provides
+#: ``run(*, trials, seed, plots_dir) -> ExperimentReport`` and ``DEFAULT_TRIALS``.
+EXPERIMENTS: dict[str, str] = {
+    "ahn2007": "rangekit.experiments.ahn2007",
+    "jiang2018": "rangekit.experiments.jiang2018",
+}
+
+
+@click.command("experiment")
+@click.argument("name", type=click.Choice(sorted(EXPERIMENTS)), metavar="NAME")
+@click.option(
+    "--trials",
+    type=click.IntRange(min=1),
+    default=None,
+    metavar="N",
+    help="Monte Carlo trials (>= 1) [the experiment's default, e.g. 20 for ahn2007].",
+)
+@click.option(
+    "--seed",
+    type=click.IntRange(min=0),
+    default=0,
+    show_default=True,
+    metavar="S",
+    help="Random seed (>= 0); the same seed and trials give the same numbers.",
+)
+@format_choice(("table", "json"), "table")
+@click.option(
+    "--plots",
+    "plots",
+    type=click.Path(file_okay=False),
+    default=None,
+    metavar="DIR",
+    help="Also write the paper's figures as PNG files into DIR (created if missing; its "
+    "parent folder must exist).",
+)
+@output_option
+@debug_option
+def experiment_cmd(name, trials, seed, fmt, plots, output):
+    """Reproduce a paper's experiment by simulation: its numbers beside rangekit's.
+
+    NAME is one of: ahn2007 (Ahn & Yu 2007: dead reckoning with bias states, l_max
+    pedestrian filter), jiang2018 (Jiang 2018: tracking people from acoustic ranges).
+    Prints a table of metric, condition, paper, measured, unit (or the JSON report,
+    docs/formats.md). A progress note and the wall time go to stderr.
+
+    \b
+    Examples:
+      rangekit experiment ahn2007
+      rangekit experiment jiang2018 --trials 5 --seed 1 --format json -o jiang.json
+      rangekit experiment ahn2007 --trials 2 --plots figures/
+    """
+    mod = _load(name)
+    n = mod.DEFAULT_TRIALS if trials is None else trials
+    plots_dir = None if plots is None else _plots_dir(plots)
+    click.echo(f"running {name}: {n} trial{'s' if n != 1 else ''}, seed {seed} ...", err=True)
+    t0 = time.perf_counter()
+    report = mod.run(trials=n, seed=seed, plots_dir=plots_dir)
+    wall = time.perf_counter() - t0
+    text = report.to_json_text() if fmt == "json" else report.to_table()
+    if not text.endswith("\n"):
+        text += "\n"
+    emit(text, output)
+    where = f"; figures in {plots_dir}" if plots_dir is not None else ""
+    click.echo(f"{name}: done in {wall:.1f} s{where}", err=True)
+
+
+def _load(name: str):
+    """Import the experiment's module; a module not installed is a rangekit error."""
+    import importlib
+
+    from rangekit.errors import RangekitError
+
+    path = EXPERIMENTS[name]
+    try:
+        return importlib.import_module(path)
+    except ModuleNotFoundError as e:
+        if e.name != path:
+            raise
+        raise RangekitError(
+            f"experiment {name!r} is not available in this installation ({path} not found)"
+        ) from None
+
+
+def _plots_dir(plots: str) -> Path:
+    """DIR for the figures, created if missing; a missing parent is an output error."""
+    from rangekit.errors import InputFileError
+
+    p = Path(plots)
+    if p.exists():
+        if not p.is_dir():
+            raise InputFileError(f"cannot write figures into '{p}': it is not a folder")
+        return p
+    if not p.parent.is_dir():
+        raise InputFileError(f"cannot create '{p}': folder '{p.parent}' does not exist")
+    try:
+        p.mkdir()
+    except OSError as e:
+        raise InputFileError(f"cannot create '{p}': {e.strerror or e}") from e
+    return p
