@@ -349,6 +349,26 @@ def _step_compiled(c: _Ctx, x, P, streak, dt, e):
     return x, P, xp, Pp, ll, n_re, c.acc[lo:hi].copy(), c.nis[lo:hi].copy()
 
 
+def _run_single(c: _Ctx, e0: int, x0: np.ndarray, P0: np.ndarray):
+    """One hypothesis, no mirrors: the whole log in one compiled call (the fast path)."""
+    from rangekit.localize._kernels import run_range_ekf
+
+    ep = c.ep
+    n, d = ep.t_s.size - e0, x0.size
+    xs, Ps = np.empty((n, d)), np.empty((n, d, d))
+    xps, Pps = np.empty((n, d)), np.empty((n, d, d))
+    ll, reinit = np.empty(n), np.zeros(n, dtype=np.int64)
+    run_range_ekf(
+        x0, P0, ep.t_s[e0], ep.t_s[e0:], ep.start[e0:], c.kind, c.a0, ep.b, ep.val, ep.var,
+        ep.cov, ep.robot_xy[e0:], ep.robot_P[e0:], c.q, c.sign, c.thr, KIND_PAIR_RANGE,
+        c.relock, c.sigma_v0, xs, Ps, xps, Pps, c.acc, c.nis, c.inno, ll, reinit,
+    )  # fmt: skip
+    rows = [slice(ep.start[e], ep.start[e + 1]) for e in range(e0, ep.t_s.size)]
+    acc_rows = [c.acc[r].copy() for r in rows]
+    nis_rows = [c.nis[r].copy() for r in rows]
+    return xs, Ps, ll, acc_rows, nis_rows, (xs, Ps, xps, Pps), reinit
+
+
 def _h_rows(ep: _Epochs, rows: np.ndarray, rxy: np.ndarray):
     """Measurement function over the given rows, for the numpy reference engine."""
 
@@ -736,10 +756,13 @@ def track_ranges(
             f"{max_hypotheses}); give fixes or more ranges at the first epoch"
         )
     ctx = _Ctx(ep, q, sign, thr, relock, sigma_v0)
-    step = _step_compiled if engine == "compiled" else _step_numpy
-    xs, Ps, ll, _, acc_rows, nis_rows, smooth_in, n_reinit = _run_bank(
-        ctx, e0, hyps, step, n_keep=max(n_keep, 1), mirror=mirror
-    )
+    if engine == "compiled" and len(hyps) == 1 and not mirror:
+        xs, Ps, ll, acc_rows, nis_rows, smooth_in, n_reinit = _run_single(ctx, e0, *hyps[0])
+    else:
+        step = _step_compiled if engine == "compiled" else _step_numpy
+        xs, Ps, ll, _, acc_rows, nis_rows, smooth_in, n_reinit = _run_bank(
+            ctx, e0, hyps, step, n_keep=max(n_keep, 1), mirror=mirror
+        )
     rejected = []
     for kk, e in enumerate(range(e0, ep.t_s.size)):
         for i, r in enumerate(range(ep.start[e], ep.start[e + 1])):

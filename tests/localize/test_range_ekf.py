@@ -130,6 +130,28 @@ def test_compiled_engine_equals_numpy_reference():
     assert [(r.t_s, r.a, r.b) for r in a.rejected] == [(r.t_s, r.a, r.b) for r in b.rejected]
 
 
+def test_single_hypothesis_fast_path_equals_the_bank():
+    """With one start hypothesis and no mirrors, the whole-log compiled loop runs; it must
+    equal the per-epoch bank path and the numpy reference."""
+    log, _ = model_log(np.random.default_rng(8), n_ep=25, nlos=[(15, 3.0)])
+    kw = dict(accel_psd=[Q1, Q], n_ring=2, max_hypotheses=1, smooth=True, mirror=False)
+    with pytest.raises(LogFormatError, match="2 initial hypotheses"):
+        track_ranges(log, **kw)
+    fix2 = MeasurementLog(
+        log.robot,
+        FixRows(np.concatenate([log.fixes.t_s, [0.0]]), np.concatenate([log.fixes.target, [2]]),
+                np.vstack([log.fixes.rel_m, [[3.0, 0.0]]]),
+                np.concatenate([log.fixes.cov_m2, [np.eye(2)]])),
+        log.ranges, 2,
+    )  # fmt: skip
+    fast = track_ranges(fix2, **kw)
+    ref = track_ranges(fix2, **kw, engine="numpy")
+    assert fast.n_hypotheses == 1
+    assert np.allclose(fast.x, ref.x, atol=1e-9) and np.allclose(fast.P, ref.P, atol=1e-9)
+    assert np.allclose(fast.x_smooth, ref.x_smooth, atol=1e-9)
+    assert [r.t_s for r in fast.rejected] == [r.t_s for r in ref.rejected]
+
+
 def test_nees_of_target_2_and_the_sign_of_eq_12():
     """Range-only tracking is mildly overconfident (the EKF linearises a banana-shaped
     posterior), so the check is on the median NEES of target 2's 4-state block over
