@@ -450,13 +450,14 @@ def _step_numpy(c: _Ctx, x, P, streak, dt, e):
     return x, P, xp, Pp, ll, n_re, keep, marg
 
 
-def _mirror_map(ep: _Epochs, e: int, n_t: int, x: np.ndarray) -> list[np.ndarray]:
+def _mirror_map(ep: _Epochs, e: int, n_t: int) -> list[tuple[np.ndarray, np.ndarray, int]]:
     """Reflections of the state for the targets ranged from two known points at epoch e.
 
     A target ranged from the robot and from a target with a fix is determined by the two
     ranges only up to its mirror image in the line through them (Jiang 2018 §4.4.3: the
-    density is multi-modal). Returns one transform T (d, d) per such target: it reflects
-    that target's position (about the line) and velocity, and leaves the rest.
+    density is multi-modal). Returns one affine map ``x -> T x + shift`` per such target,
+    as ``(T (d, d), shift (d,), offset of the target's block)``: it reflects that target's
+    position (about the line) and velocity, and leaves the rest.
     """
     lo, hi = ep.start[e], ep.start[e + 1]
     fixes = {int(ep.b[r]): (ep.val[r], ep.val[r + 1]) for r in range(lo, hi) if ep.kind[r] == 2}
@@ -478,11 +479,11 @@ def _mirror_map(ep: _Epochs, e: int, n_t: int, x: np.ndarray) -> list[np.ndarray
             continue
         u /= nu
         M = 2 * np.outer(u, u) - np.eye(2)
-        T = np.eye(x.size)
+        T = np.eye(4 * n_t)
         o = 4 * j
         T[o : o + 2, o : o + 2] = M
         T[o + 2 : o + 4, o + 2 : o + 4] = M
-        shift = np.zeros(x.size)
+        shift = np.zeros(4 * n_t)
         shift[o : o + 2] = p0 - M @ p0
         out.append((T, shift, o))
     return out
@@ -520,13 +521,13 @@ def _run_bank(c: _Ctx, e0: int, hyps, step, *, n_keep: int, mirror: bool):
         dt = ep.t_s[e] - t
         t = ep.t_s[e]
         cands = []
+        mirrors = _mirror_map(ep, e, n_t) if mirror else []
         for h in bank:
             variants = [(h.x, h.P, 0.0)]
-            if mirror:
-                for T, shift, o in _mirror_map(ep, e, n_t, h.x):
-                    xm = T @ h.x + shift
-                    if np.hypot(*(xm[o : o + 2] - h.x[o : o + 2])) > 0.25:
-                        variants.append((xm, T @ h.P @ T.T, MIRROR_PRIOR_NATS))
+            for T, shift, o in mirrors:
+                xm = T @ h.x + shift
+                if np.hypot(*(xm[o : o + 2] - h.x[o : o + 2])) > 0.25:
+                    variants.append((xm, T @ h.P @ T.T, MIRROR_PRIOR_NATS))
             for xv, Pv, penalty in variants:
                 streak = h.streak.copy()
                 x, P, xp, Pp, ll, n_re, acc, nis = step(c, xv, Pv, streak, dt, e)
