@@ -215,15 +215,14 @@ def _range_ekf(log, *, accel_psd, gate, cross_sign, smooth):
 
 
 def _lmax(log, l_max, i_star):
-    from rangekit.localize.lmax import read_position_log, track_log
+    from rangekit.localize.lmax import read_position_log, track_fixes
 
     if l_max is None:
         raise click.UsageError("--filter lmax needs --l-max (largest move per step, m)")
-    if i_star is not None:
-        t, _ = read_position_log(log, name=str(log))
-        if i_star > t.size:
-            raise click.BadParameter(
-                f"{i_star} is beyond the {t.size} fixes of {log} (1-based: 1..{t.size})",
-                param_hint="--i-star",
-            )
-    return track_log(log, l_max_m=l_max, i_star=None if i_star is None else i_star - 1)
+    t, fixes = read_position_log(log, name=str(log))
+    if i_star is not None and i_star > t.size:
+        raise click.BadParameter(
+            f"{i_star} is beyond the {t.size} fixes of {log} (1-based: 1..{t.size})",
+            param_hint="--i-star",
+        )
+    return track_fixes(t, fixes, l_max_m=l_max, i_star=None if i_star is None else i_star - 1)

@@ -48,6 +48,7 @@ __all__ = [
     "lmax_online",
     "lmax_step",
     "read_position_log",
+    "track_fixes",
     "track_log",
 ]
 
@@ -329,10 +330,23 @@ def track_log(
     >>> cols, rows.tolist()
     (['t_s', 'x_m', 'y_m'], [[0.0, 0.0, 0.0], [1.0, 0.6, 0.8]])
     """
-    l_max = V.positive("l_max_m", l_max_m)
     t, meas = read_position_log(path)
+    return track_fixes(t, meas, l_max_m=l_max_m, i_star=i_star)
+
+
+def track_fixes(
+    t_s: np.ndarray, measured_m: np.ndarray, *, l_max_m: float, i_star: int | None = None
+) -> tuple[list[str], np.ndarray]:
+    """:func:`track_log` on fixes already read (``t_s`` (n,), ``measured_m`` (n, 2)).
+
+    Examples
+    --------
+    >>> cols, rows = track_fixes([0.0, 1.0], [[0.0, 0.0], [3.0, 4.0]], l_max_m=1.0, i_star=0)
+    >>> rows.tolist()
+    [[0.0, 0.0, 0.0], [1.0, 0.6, 0.8]]
+    """
     if i_star is None:
-        est = lmax_online(meas, l_max_m=l_max)
+        est = lmax_online(measured_m, l_max_m=l_max_m)
     else:
-        est = lmax_offline(meas, l_max_m=l_max, i_star=i_star)
-    return list(TRACK_COLUMNS), np.column_stack([t, est]).reshape(-1, 3)
+        est = lmax_offline(measured_m, l_max_m=l_max_m, i_star=i_star)
+    return list(TRACK_COLUMNS), np.column_stack([t_s, est]).reshape(-1, 3)

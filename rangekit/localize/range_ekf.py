@@ -324,7 +324,6 @@ class _Ctx:
     def __init__(self, ep, q, sign, thr, relock, sigma_v0):
         self.ep, self.q, self.sign, self.thr = ep, q, sign, thr
         self.relock, self.sigma_v0 = relock, sigma_v0
-        self.kind = ep.kind
         self.a0 = np.maximum(ep.a, 0)
         n_rows = ep.kind.size
         self.acc = np.zeros(n_rows, dtype=np.bool_)
@@ -341,7 +340,7 @@ def _step_compiled(c: _Ctx, x, P, streak, dt, e):
     x, P = x.copy(), P.copy()
     xp, Pp = np.empty_like(x), np.empty_like(P)
     ll, n_re = epoch_step(
-        x, P, xp, Pp, dt, e, ep.start, c.kind, c.a0, ep.b, ep.val, ep.var, ep.cov,
+        x, P, xp, Pp, dt, e, ep.start, ep.kind, c.a0, ep.b, ep.val, ep.var, ep.cov,
         ep.robot_xy, ep.robot_P, c.q, c.sign, c.thr, KIND_PAIR_RANGE, c.relock, c.sigma_v0,
         streak, c.acc, c.nis, c.inno,
     )  # fmt: skip
@@ -359,7 +358,7 @@ def _run_single(c: _Ctx, e0: int, x0: np.ndarray, P0: np.ndarray):
     xps, Pps = np.empty((n, d)), np.empty((n, d, d))
     ll, reinit = np.empty(n), np.zeros(n, dtype=np.int64)
     run_range_ekf(
-        x0, P0, ep.t_s[e0], ep.t_s[e0:], ep.start[e0:], c.kind, c.a0, ep.b, ep.val, ep.var,
+        x0, P0, ep.t_s[e0], ep.t_s[e0:], ep.start[e0:], ep.kind, c.a0, ep.b, ep.val, ep.var,
         ep.cov, ep.robot_xy[e0:], ep.robot_P[e0:], c.q, c.sign, c.thr, KIND_PAIR_RANGE,
         c.relock, c.sigma_v0, xs, Ps, xps, Pps, c.acc, c.nis, c.inno, ll, reinit,
     )  # fmt: skip
@@ -504,8 +503,9 @@ def _run_bank(c: _Ctx, e0: int, hyps, step, *, n_keep: int, mirror: bool):
     updated, and the ``n_keep`` with the highest cumulative likelihood survive
     (candidates whose positions lie within 0.25 m of a better one are dropped).
 
-    Returns per-epoch arrays of the best hypothesis (causal) and the lineage of the final
-    best (for smoothing).
+    Returns the reported hypothesis's per-epoch means, covariances, log-likelihoods,
+    row flags and NIS (causal), the lineage of the final best (for smoothing) and the
+    re-opened target counts.
     """
     ep = c.ep
     n = ep.t_s.size - e0
@@ -573,7 +573,7 @@ def _run_bank(c: _Ctx, e0: int, hyps, step, *, n_keep: int, mirror: bool):
         np.stack([r[2] for r in line]),
         np.stack([r[3] for r in line]),
     )
-    return xs, Ps, ll, best_idx, acc_rows, nis_rows, smooth_in, n_reinit
+    return xs, Ps, ll, acc_rows, nis_rows, smooth_in, n_reinit
 
 
 # --------------------------------------------------------------------------- results
@@ -761,7 +761,7 @@ def track_ranges(
         xs, Ps, ll, acc_rows, nis_rows, smooth_in, n_reinit = _run_single(ctx, e0, *hyps[0])
     else:
         step = _step_compiled if engine == "compiled" else _step_numpy
-        xs, Ps, ll, _, acc_rows, nis_rows, smooth_in, n_reinit = _run_bank(
+        xs, Ps, ll, acc_rows, nis_rows, smooth_in, n_reinit = _run_bank(
             ctx, e0, hyps, step, n_keep=max(n_keep, 1), mirror=mirror
         )
     rejected = []
