@@ -13,6 +13,7 @@ from rangekit_cli._options import debug_option, emit, format_choice, output_opti
 EXPERIMENTS: dict[str, str] = {
     "ahn2007": "rangekit.experiments.ahn2007",
     "jiang2018": "rangekit.experiments.jiang2018",
+    "kim2013": "rangekit.experiments.kim2013",
 }
 
 

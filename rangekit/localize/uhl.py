@@ -21,13 +21,13 @@ Examples
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
 
 from rangekit import _validate as V
 from rangekit.errors import InvalidParameterError
+from rangekit.localize import _uhl_kernels as K
 
 __all__ = ["DEFAULT_D_TH_M", "R_R_M", "UHLPose", "solve_pose"]
 
@@ -36,10 +36,7 @@ __all__ = ["DEFAULT_D_TH_M", "R_R_M", "UHLPose", "solve_pose"]
 R_R_M = 0.19
 #: Default hybrid threshold ``d_th`` (m) of Table I (see :func:`solve_pose`, Notes).
 DEFAULT_D_TH_M = 0.2
-#: Txs count as collinear when the smaller principal spread of their x-y positions is at
-#: most this fraction of the larger one.
-_COLLINEAR_RTOL = 1e-6
-_METHODS = ("hybrid", "direct", "indirect")
+_METHODS = {"hybrid": K.HYBRID, "direct": K.DIRECT, "indirect": K.INDIRECT}
 
 
 @dataclass(frozen=True)
@@ -85,148 +82,6 @@ def _check_inputs(tx_xyz, distances) -> tuple[np.ndarray, np.ndarray]:
     if np.any(d < 0.0):
         raise InvalidParameterError(f"distances must be >= 0, got minimum {d.min()!r}")
     return tx, d
-
-
-def _receivers_local(r_R: float) -> np.ndarray:
-    """Receiver positions in the robot frame, ``(3, 2)`` (Kim & Kim 2013 eq (1))."""
-    g = 2.0 * np.pi * np.arange(3) / 3.0
-    return r_R * np.stack([np.cos(g), np.sin(g)], axis=1)
-
-
-def _orientation_system(txy: np.ndarray, d2: np.ndarray, r_R: float):
-    """``A`` and ``b`` of Kim & Kim 2013 eq (4), over all pairs ``i < j``."""
-    i, j = np.triu_indices(len(txy), k=1)
-    dx = txy[j, 0] - txy[i, 0]
-    dy = txy[j, 1] - txy[i, 1]
-    s3 = math.sqrt(3.0)
-    a = np.empty((2 * len(i), 2))
-    a[0::2] = np.stack([s3 * dx, s3 * dy], axis=1)
-    a[1::2] = np.stack([-dy, dx], axis=1)
-    u = 2.0 * d2[:, 0] - d2[:, 1] - d2[:, 2]
-    v = -d2[:, 1] + d2[:, 2]
-    b = np.empty(2 * len(i))
-    b[0::2] = u[i] - u[j]
-    b[1::2] = v[i] - v[j]
-    return a, b / (2.0 * s3 * r_R)
-
-
-def _heading(txy: np.ndarray, d2: np.ndarray, r_R: float) -> float:
-    """Heading by Kim & Kim 2013 eqs (4)-(9), polished by Newton steps on eq (7)."""
-    a, b = _orientation_system(txy, d2, r_R)
-    m = a.T @ a
-    c = a.T @ b  # = -[b1, b2] of the paper
-    a1, a2, a3 = m[0, 0], m[1, 1], m[0, 1]
-    b1, b2 = -c[0], -c[1]
-    phi_pinv = np.linalg.lstsq(a, b, rcond=None)[0]
-
-    k4 = (a1 - a2) ** 2 + 4.0 * a3**2
-    kappa = np.array(
-        [
-            k4,
-            -2.0 * (a1 - a2) * b2 + 4.0 * a3 * b1,
-            b1**2 + b2**2 - k4,
-            2.0 * (a1 - a2) * b2 - 2.0 * a3 * b1,
-            a3**2 - b2**2,
-        ]
-    )
-    cands: list[float] = []
-    scale = np.max(np.abs(kappa))
-    if scale > 0.0:
-        kappa = kappa / scale
-        kappa[np.abs(kappa) < 1e-14] = 0.0
-        if np.any(kappa[:-1] != 0.0):
-            for root in np.roots(kappa):
-                if abs(root.imag) <= 1e-6 and abs(root.real) <= 1.0 + 1e-6:
-                    s = min(1.0, max(-1.0, root.real))
-                    co = math.sqrt(max(0.0, 1.0 - s * s))
-                    cands += [math.atan2(s, co), math.atan2(s, -co)]  # eq (9)
-
-    def cost(phi: float) -> float:
-        r = a @ np.array([math.cos(phi), math.sin(phi)]) - b
-        return float(r @ r)
-
-    if cands:
-        pts = np.stack([np.cos(cands), np.sin(cands)], axis=1)
-        gap = np.linalg.norm(pts - phi_pinv, axis=1)
-        costs = np.array([cost(p) for p in cands])
-        # closest to the pseudoinverse solution; ties broken by the eq (5) cost
-        best = np.lexsort((costs, np.round(gap, 12)))[0]
-        phi = float(cands[best])
-    elif np.any(phi_pinv != 0.0):
-        phi = math.atan2(phi_pinv[1], phi_pinv[0])
-    else:
-        phi = 0.0
-
-    # Newton on eq (7), f(phi) = dJ/dphi / 2, accepted only while the cost J decreases.
-    j0 = cost(phi)
-    for _ in range(30):
-        f = a3 * math.cos(2 * phi) + 0.5 * (a2 - a1) * math.sin(2 * phi)
-        f += b2 * math.cos(phi) - b1 * math.sin(phi)
-        fp = -2 * a3 * math.sin(2 * phi) + (a2 - a1) * math.cos(2 * phi)
-        fp += -b2 * math.sin(phi) - b1 * math.cos(phi)
-        if not fp > 0.0:
-            break
-        step = max(-0.1, min(0.1, -f / fp))
-        for _ in range(20):
-            j1 = cost(phi + step)
-            if j1 <= j0:
-                break
-            step *= 0.5
-        else:
-            break
-        phi, j0 = phi + step, j1
-        if abs(step) < 1e-15:
-            break
-    return phi
-
-
-def _sphere_ls(centres: np.ndarray, rhs_r2: np.ndarray) -> np.ndarray:
-    """Least-squares ``[x, y]`` from ``|c_k - p|^2 = r2_k`` linearised in ``(x, y, x^2+y^2)``.
-
-    This is the spherical-interpolation form of Kim & Kim 2013 eq (10) with rows
-    ``[c_x, c_y, -0.5] . [x, y, x^2 + y^2] = (|c|^2 - r2) / 2``.
-    """
-    g = np.column_stack([centres, np.full(len(centres), -0.5)])
-    h = 0.5 * (np.sum(centres**2, axis=1) - rhs_r2)
-    return np.linalg.lstsq(g, h, rcond=None)[0][:2]
-
-
-def _position_dm(txy, z2, d2, phi, r_R) -> np.ndarray:
-    """Position by the direct method, Kim & Kim 2013 eq (10) (frame centred on the Txs)."""
-    loc = _receivers_local(r_R)
-    rot = np.array([[math.cos(phi), -math.sin(phi)], [math.sin(phi), math.cos(phi)]])
-    g = loc @ rot.T  # (3, 2): g_l of eq (10)
-    centres = (txy[:, None, :] - g[None, :, :]).reshape(-1, 2)
-    r2 = (d2 - z2[:, None]).reshape(-1)
-    return _sphere_ls(centres, r2)
-
-
-def _ranges_horizontal2(d2, z2, r_R) -> np.ndarray:
-    """Squared horizontal range to the array centre from eq (11): rho^2 - z^2, clipped >= 0."""
-    rho2 = np.sum(d2, axis=1) / 3.0 - r_R**2
-    return np.maximum(rho2 - z2, 0.0)
-
-
-def _position_imr_collinear(txy, r2, centre_dir, p_dm) -> np.ndarray:
-    """Collinear-Tx IMR: circle intersections, eqs (12)-(13), side chosen by the DM."""
-    u, n = centre_dir
-    t = txy @ u  # positions along the line (frame centred on the Tx centroid)
-    off = float(np.mean(txy @ n))  # the line is n . p = off
-    side = [[], []]
-    for i in range(len(txy)):
-        for j in range(i + 1, len(txy)):
-            dist = t[j] - t[i]
-            if abs(dist) <= 1e-12 * (1.0 + np.max(np.abs(t))):
-                continue  # coincident Txs: no intersection information
-            a = (r2[i] - r2[j] + dist * dist) / (2.0 * dist)
-            h = math.sqrt(max(0.0, r2[i] - a * a))  # no intersection: tangent point
-            foot = (t[i] + a) * u + off * n
-            side[0].append(foot + h * n)  # Delta >= 0 (set I_1)
-            side[1].append(foot - h * n)  # Delta <= 0 (set I_2)
-    if not side[0]:
-        return p_dm
-    subs = [np.mean(s, axis=0) for s in side]
-    return min(subs, key=lambda q: float(np.linalg.norm(q - p_dm)))
 
 
 def solve_pose(
@@ -309,51 +164,16 @@ def solve_pose(
     r_R = V.positive("r_R", r_R)
     d_th = V.positive("d_th", d_th, allow_zero=True)
     if method not in _METHODS:
-        raise InvalidParameterError(f"method={method!r} must be one of {_METHODS}")
-
-    origin = tx[:, :2].mean(axis=0)
-    txy = tx[:, :2] - origin  # work in a frame centred on the Txs (conditioning)
-    z2 = tx[:, 2] ** 2
-    d2 = d * d
-    _, sv, vt = np.linalg.svd(txy, full_matrices=False)
-    if not sv[0] > 1e-12 * (1.0 + float(np.max(np.abs(tx[:, :2])))):
+        raise InvalidParameterError(f"method={method!r} must be one of {tuple(_METHODS)}")
+    x, y, phi, used_dm, residual, ok = K.uhl_core(tx, d, float(r_R), _METHODS[method], d_th)
+    if not ok:
         raise InvalidParameterError(
             "tx_xyz: all transmitters are at the same x-y point; the heading is unobservable"
         )
-    collinear = bool(sv[1] <= _COLLINEAR_RTOL * sv[0])
-    u = vt[0]
-    n = np.array([-u[1], u[0]])
-
-    phi = _heading(txy, d2, r_R)
-    p_dm = _position_dm(txy, z2, d2, phi, r_R)
-    if method == "direct":
-        use_dm = True
-    elif method == "indirect":
-        use_dm = False
-    else:
-        use_dm = collinear and abs(float(n @ p_dm) - float(np.mean(txy @ n))) < d_th
-    if use_dm:
-        p, used = p_dm, "direct"
-    else:
-        r2 = _ranges_horizontal2(d2, z2, r_R)
-        if collinear:
-            p = _position_imr_collinear(txy, r2, (u, n), p_dm)
-        else:
-            p = _sphere_ls(txy, r2)
-        used = "indirect"
-
-    phi = math.remainder(phi, 2.0 * math.pi)
-    if phi <= -math.pi:
-        phi += 2.0 * math.pi
-    loc = _receivers_local(r_R)
-    rot = np.array([[math.cos(phi), -math.sin(phi)], [math.sin(phi), math.cos(phi)]])
-    rx = p + loc @ rot.T
-    pred = np.sqrt(np.sum((txy[:, None, :] - rx[None, :, :]) ** 2, axis=2) + z2[:, None])
-    residual = float(np.sqrt(np.mean((pred - d) ** 2)))
     return UHLPose(
-        x_m=float(p[0] + origin[0]),
-        y_m=float(p[1] + origin[1]),
+        x_m=float(x),
+        y_m=float(y),
         phi_rad=float(phi),
-        method_used=used,
-        residual_m=residual,
+        method_used="direct" if used_dm else "indirect",
+        residual_m=float(residual),
     )
