@@ -50,7 +50,9 @@ def experiment_cmd(name, trials, seed, fmt, plots, output):
     """Reproduce a paper's experiment by simulation: its numbers beside rangekit's.
 
     NAME is one of: ahn2007 (Ahn & Yu 2007: dead reckoning with bias states, l_max
-    pedestrian filter), jiang2018 (Jiang 2018: tracking people from acoustic ranges).
+    pedestrian filter), jiang2018 (Jiang 2018: tracking people from acoustic ranges),
+    kim2013 (Kim & Kim 2013: DUHL robot localisation from ceiling ultrasonic beacons,
+    Tables II and III).
     Prints a table of metric, condition, paper, measured, unit (or the JSON report,
     docs/formats.md). A progress note and the wall time go to stderr.
 
@@ -59,6 +61,7 @@ def experiment_cmd(name, trials, seed, fmt, plots, output):
       rangekit experiment ahn2007
       rangekit experiment jiang2018 --trials 5 --seed 1 --format json -o jiang.json
       rangekit experiment ahn2007 --trials 2 --plots figures/
+      rangekit experiment kim2013 --trials 3 --plots figures/
     """
     mod = _load(name)
     n = mod.DEFAULT_TRIALS if trials is None else trials

@@ -28,6 +28,7 @@ class RangekitGroup(click.Group):
         "design": ("rangekit_cli.design_cmd", "design"),
         "synth": ("rangekit_cli.synth_cmd", "synth"),
         "track": ("rangekit_cli.track_cmd", "track_cmd"),
+        "locate": ("rangekit_cli.locate_cmd", "locate_cmd"),
         "experiment": ("rangekit_cli.experiment_cmd", "experiment_cmd"),
     }
 

@@ -6,23 +6,53 @@ import json
 import math
 
 import click
-from rangekit_cli._options import FiniteRange, debug_option, emit, format_choice, output_option
+from rangekit_cli._options import (
+    FiniteRange,
+    debug_option,
+    emit,
+    float_list,
+    format_choice,
+    output_option,
+)
 
-FILTERS = ("range-ekf", "dead-reckoning", "lmax")
+FILTERS = ("range-ekf", "dead-reckoning", "lmax", "duhl", "duhl-ranges")
+_DUHL = ("duhl", "duhl-ranges")
 
 #: Which filters each filter-specific option applies to (option name -> filters).
 _APPLIES = {
     "--accel-psd": ("range-ekf",),
-    "--gate": ("range-ekf", "dead-reckoning"),
-    "--no-gate": ("range-ekf", "dead-reckoning"),
+    "--gate": ("range-ekf", "dead-reckoning", *_DUHL),
+    "--no-gate": ("range-ekf", "dead-reckoning", *_DUHL),
     "--cross-sign": ("range-ekf",),
     "--smooth": ("range-ekf", "dead-reckoning"),
     "--l-max": ("lmax",),
     "--i-star": ("lmax",),
+    "--beacons": _DUHL,
+    "--initial-pose": _DUHL,
+    "--wheel-base": _DUHL,
+    "--sigma-d": _DUHL,
+    "--k-v": _DUHL,
 }
 
+#: Defaults of the duhl options, for the help text only (the values used are those of
+#: :class:`rangekit.localize.duhl.DUHLConfig`, not imported here to keep start-up fast;
+#: tests check that the two agree).
+DUHL_DEFAULTS = {"wheel_base_m": 0.33, "sigma_d_m": 0.01, "k_v_m": 4e-4}
+
 #: Track columns that hold whole numbers (written as integers).
-_INT_COLUMNS = frozenset({"target"})
+_INT_COLUMNS = frozenset({"target", "status"})
+
+#: Columns of the duhl and duhl-ranges tracks.
+DUHL_COLUMNS = (
+    "t_s",
+    "x_m",
+    "y_m",
+    "heading_rad",
+    "var_x_m2",
+    "var_y_m2",
+    "var_heading_rad2",
+    "status",
+)
 
 
 @click.command("track")
@@ -35,7 +65,10 @@ _INT_COLUMNS = frozenset({"target"})
     help="range-ekf: people from acoustic ranges (Jiang 2018), LOG is a measurement log; "
     "dead-reckoning: robot from accelerometer + odometer with bias states (Ahn & Yu 2007), "
     "LOG is an IMU log; lmax: pedestrian position fixes through the l_max filter (Ahn & Yu "
-    "2007), LOG is a position log.",
+    "2007), LOG is a position log; duhl: robot pose from wheel odometry and ceiling "
+    "ultrasonic transmitters (Kim & Kim 2013), LOG is a DUHL log, needs --beacons; "
+    "duhl-ranges: the same with each Tx's distances fed straight to the EKF (the "
+    "comparison filter, no UHL).",
 )
 @click.option(
     "--smooth",
@@ -58,13 +91,15 @@ _INT_COLUMNS = frozenset({"target"})
     default=None,
     metavar="FLOAT",
     help="Innovation gate probability in (0, 1): measurements beyond this chi-square "
-    "quantile are rejected [range-ekf: 0.999 per range; dead-reckoning: no gate].",
+    "quantile are rejected [range-ekf: 0.999 per range; dead-reckoning, duhl, duhl-ranges: "
+    "no gate].",
 )
 @click.option(
     "--no-gate",
     "no_gate",
     is_flag=True,
-    help="range-ekf, dead-reckoning: use every measurement (no innovation gate).",
+    help="range-ekf, dead-reckoning, duhl, duhl-ranges: use every measurement (no "
+    "innovation gate).",
 )
 @click.option(
     "--cross-sign",
@@ -92,25 +127,86 @@ _INT_COLUMNS = frozenset({"target"})
     "paper's i*: runs the offline filter, backward and forward from it. Without it: the "
     "online filter, anchored at the first fix.",
 )
+@click.option(
+    "--beacons",
+    type=click.Path(dir_okay=True),
+    default=None,
+    metavar="FILE",
+    help="duhl, duhl-ranges (required): beacon file, the ceiling transmitters' ids and "
+    "positions (JSON, docs/formats.md).",
+)
+@click.option(
+    "--initial-pose",
+    "initial_pose",
+    default=None,
+    metavar="X,Y,DEG",
+    help="duhl, duhl-ranges: the robot's pose at the first odometry row (m, m, degrees). "
+    "Without it the filter starts where two transmitters have been heard, from a UHL "
+    "solve.",
+)
+@click.option(
+    "--wheel-base",
+    "wheel_base",
+    type=FiniteRange(0.0, None, min_open=True),
+    default=None,
+    metavar="M",
+    help="duhl, duhl-ranges: distance between the drive wheels, m "
+    f"[{DUHL_DEFAULTS['wheel_base_m']:g}, a Pioneer P3-DX].",
+)
+@click.option(
+    "--sigma-d",
+    "sigma_d",
+    type=FiniteRange(0.0, None, min_open=True),
+    default=None,
+    metavar="M",
+    help=f"duhl, duhl-ranges: 1-sigma of a measured distance, m [{DUHL_DEFAULTS['sigma_d_m']:g}].",
+)
+@click.option(
+    "--k-v",
+    "k_v",
+    type=FiniteRange(0.0, None),
+    default=None,
+    metavar="M",
+    help="duhl, duhl-ranges: odometry noise, variance k_v |v| / dt per wheel, m "
+    f"[{DUHL_DEFAULTS['k_v_m']:g}].",
+)
 @format_choice(("csv", "json"), "csv")
 @output_option
 @debug_option
 def track_cmd(
-    log, filter_, smooth, accel_psd, gate, no_gate, cross_sign, l_max, i_star, fmt, output
+    log,
+    filter_,
+    smooth,
+    accel_psd,
+    gate,
+    no_gate,
+    cross_sign,
+    l_max,
+    i_star,
+    beacons,
+    initial_pose,
+    wheel_base,
+    sigma_d,
+    k_v,
+    fmt,
+    output,
 ):
     """Track from a log: people from ranges, a robot from its IMU, or a walker's fixes.
 
-    LOG.csv is a measurement log (range-ekf), an IMU log (dead-reckoning) or a position log
-    (lmax), formats in docs/formats.md. Prints one row per epoch (and per target for
-    range-ekf) as CSV with a header, or JSON with "columns" and "rows". range-ekf also
-    prints a one-line summary on stderr (epochs, targets, rejected ranges, re-opened
-    targets, skipped epochs).
+    LOG.csv is a measurement log (range-ekf), an IMU log (dead-reckoning), a position log
+    (lmax) or a DUHL log of wheel odometry and ultrasonic distances (duhl, duhl-ranges),
+    formats in docs/formats.md. Prints one row per epoch (and per target for range-ekf)
+    as CSV with a header, or JSON with "columns" and "rows". range-ekf also prints a
+    one-line summary on stderr (epochs, targets, rejected ranges, re-opened targets,
+    skipped epochs); duhl and duhl-ranges print a summary (observations used and
+    rejected, warnings) and then each warning.
 
     \b
     Examples:
       rangekit track --filter range-ekf log.csv --smooth -o track.csv
       rangekit track --filter dead-reckoning imu.csv --format json
       rangekit track --filter lmax fixes.csv --l-max 0.5 --i-star 1
+      rangekit track --filter duhl run.csv --beacons beacons.json -o pose.csv
     """
     given = {
         "--accel-psd": accel_psd is not None,
@@ -120,6 +216,11 @@ def track_cmd(
         "--smooth": smooth,
         "--l-max": l_max is not None,
         "--i-star": i_star is not None,
+        "--beacons": beacons is not None,
+        "--initial-pose": initial_pose is not None,
+        "--wheel-base": wheel_base is not None,
+        "--sigma-d": sigma_d is not None,
+        "--k-v": k_v is not None,
     }
     for opt, used in given.items():
         if used and filter_ not in _APPLIES[opt]:
@@ -131,6 +232,7 @@ def track_cmd(
 
     extra: dict = {}
     summary = None
+    notes: list[str] = []
     if filter_ == "range-ekf":
         columns, rows, extra, summary = _range_ekf(
             log,
@@ -143,8 +245,19 @@ def track_cmd(
         from rangekit.localize.deadreckoning import track_log
 
         columns, rows = track_log(log, smooth=smooth, gate=gate)
-    else:
+    elif filter_ == "lmax":
         columns, rows = _lmax(log, l_max, i_star)
+    else:
+        columns, rows, extra, summary, notes = _duhl(
+            log,
+            filter_,
+            beacons=beacons,
+            initial_pose=initial_pose,
+            wheel_base=wheel_base,
+            sigma_d=sigma_d,
+            k_v=k_v,
+            gate=gate,
+        )
 
     table = [_row(columns, r) for r in rows]
     if fmt == "csv":
@@ -164,6 +277,8 @@ def track_cmd(
     emit(text, output)
     if summary:
         click.echo(summary, err=True)
+    for note in notes:
+        click.echo(f"warning: {note}", err=True)
 
 
 def _row(columns, values) -> list:
@@ -226,3 +341,117 @@ def _lmax(log, l_max, i_star):
             param_hint="--i-star",
         )
     return track_fixes(t, fixes, l_max_m=l_max, i_star=None if i_star is None else i_star - 1)
+
+
+def _initial_pose(text: str | None) -> list[float] | None:
+    """``X,Y,DEG`` of --initial-pose as ``[x_m, y_m, phi_rad]``."""
+    vals = float_list(text, name="--initial-pose")
+    if vals is None:
+        return None
+    if len(vals) != 3:
+        raise click.BadParameter(
+            f"{text!r} must be three numbers X,Y,DEG (m, m, degrees), got {len(vals)}",
+            param_hint="--initial-pose",
+        )
+    return [vals[0], vals[1], math.radians(vals[2])]
+
+
+def _duhl(log, filter_, *, beacons, initial_pose, wheel_base, sigma_d, k_v, gate):
+    import numpy as np
+
+    from rangekit.errors import IncompatibleInputError, InvalidParameterError, LogFormatError
+    from rangekit.io.duhllog import read_beacons, read_duhl_log
+    from rangekit.localize._duhl_kernels import (
+        OBS_BEFORE_START,
+        OBS_DEGENERATE,
+        OBS_GATED,
+        OBS_RESIDUAL,
+        OBS_USED,
+    )
+    from rangekit.localize.duhl import DUHLConfig, track_duhl
+
+    if beacons is None:
+        raise click.UsageError(
+            f"--filter {filter_} needs --beacons FILE (the transmitters' positions)"
+        )
+    pose0 = _initial_pose(initial_pose)
+    given = {"wheel_base_m": wheel_base, "sigma_d_m": sigma_d, "k_v_m": k_v}
+    config = DUHLConfig(
+        **{k: v for k, v in given.items() if v is not None},
+        variant="ranges" if filter_ == "duhl-ranges" else "duhl",
+        gate_prob=gate,
+    )
+    name = str(log)
+    dlog = read_duhl_log(log, name=name)
+    bcn = read_beacons(beacons)
+    known = {int(i) for i in bcn.ids.tolist()}
+    d = dlog.distances
+    for t_s, tx in zip(d.t_s.tolist(), d.tx.tolist(), strict=True):
+        if int(tx) not in known:
+            raise IncompatibleInputError(
+                f"{name}: the distance row at t_s={t_s:g} names transmitter {int(tx)}, which "
+                f"is not in the beacon file {str(beacons)!r} (ids: {sorted(known)})"
+            )
+    o = dlog.odometry
+    try:
+        trk = track_duhl(
+            o.t_s,
+            o.v_right_mps,
+            o.v_left_mps,
+            d.t_s,
+            d.tx,
+            d.d_m,
+            bcn.xyz_m,
+            tx_ids=bcn.ids,
+            config=config,
+            initial_pose=pose0,
+        )
+    except InvalidParameterError as e:
+        # The options are checked above, so what is left is the log itself (no odometry,
+        # never two transmitters heard to start from).
+        msg = str(e).replace("initial_pose not given", "--initial-pose not given")
+        raise LogFormatError(f"{name}: the filter cannot run on this log: {msg}") from e
+
+    k0 = trk.start_index
+    cov = trk.cov[k0:]
+    rows = np.column_stack(
+        [
+            trk.t_s[k0:],
+            trk.pose[k0:],
+            cov[:, 0, 0],
+            cov[:, 1, 1],
+            cov[:, 2, 2],
+            trk.status[k0:],
+        ]
+    )
+    st = trk.obs_status
+    m = int(st.size)
+    used = int(np.count_nonzero(st == OBS_USED))
+    # Rejected as status bit 4 counts them: UHL undefined, residual too large, gated.
+    rejected = int(np.count_nonzero(np.isin(st, (OBS_DEGENERATE, OBS_RESIDUAL, OBS_GATED))))
+    before = int(np.count_nonzero(st == OBS_BEFORE_START))
+    none = m - used - rejected - before
+    warnings = list(trk.warnings)
+    summary = (
+        f"{filter_}: {rows.shape[0]} poses from t_s={trk.t_s[k0]:g}, {m} distance rows: "
+        f"{used} observations used, {rejected} rejected, {none} without an observation, "
+        f"{before} before the start; {len(warnings)} warnings"
+    )
+    extra = {
+        "beacons": str(beacons),
+        "start_t_s": float(trk.t_s[k0]),
+        "initial_pose": None if pose0 is None else pose0,
+        "config": {
+            "wheel_base_m": config.wheel_base_m,
+            "sigma_d_m": config.sigma_d_m,
+            "k_v_m": config.k_v_m,
+            "gate": config.gate_prob,
+        },
+        "n_distance_rows": m,
+        "n_observations": used,
+        "n_rejected": rejected,
+        "n_without_observation": none,
+        "n_before_start": before,
+        "warnings": warnings,
+    }
+    return DUHL_COLUMNS, rows, extra, summary, warnings

@@ -138,18 +138,52 @@ def predict_distances(
     workspace of 9 floats.
     """
     dd, dph = odometry_increment(v_r, v_l, dt, b_w)
+    ch, sh = math.cos(0.5 * dph), math.sin(0.5 * dph)
+    cp, sp = math.cos(pose[2]), math.sin(pose[2])
+    u0 = k_v * abs(v_r) / dt
+    u1 = k_v * abs(v_l) / dt
+    predict_distances_fast(pose, q, qc, tx, dd, dph, ch, sh, cp, sp, u0, u1, dt, b_w, r_R, ws)
+
+
+#: Receiver directions in the robot frame, (cos, sin) of 0, 120 and 240 degrees (eq (1)).
+_RX_C = (1.0, -0.5, -0.5)
+_RX_S = (0.0, 0.8660254037844386, -0.8660254037844386)
+
+
+@njit(cache=True)
+def predict_distances_fast(
+    pose: np.ndarray,
+    q: np.ndarray,
+    qc: np.ndarray,
+    tx: np.ndarray,
+    dd: float,
+    dph: float,
+    ch: float,
+    sh: float,
+    cp: float,
+    sp: float,
+    u0: float,
+    u1: float,
+    dt: float,
+    b_w: float,
+    r_R: float,
+    ws: np.ndarray,
+) -> None:
+    """:func:`predict_distances` with the per-step quantities precomputed (no
+    trigonometry): ``(ch, sh)`` = cos, sin of ``Delta phi / 2``, ``(cp, sp)`` of the
+    heading, ``u0, u1`` the diagonal of ``U``."""
     ex = tx[0] - pose[0]
     ey = tx[1] - pose[1]
     h = math.sqrt(ex * ex + ey * ey)  # sqrt(rho^2 - z_T^2)
-    theta = math.atan2(ey, ex) - pose[2]
-    st, ct = math.sin(theta), math.cos(theta)
-    ch, sh = math.cos(0.5 * dph), math.sin(0.5 * dph)
-    ctd, std = math.cos(theta - 0.5 * dph), math.sin(theta - 0.5 * dph)
-    u0 = k_v * abs(v_r) / dt
-    u1 = k_v * abs(v_l) / dt
-    g3 = 2.0 * math.pi / 3.0
+    if h > 0.0:  # theta = atan2(ey, ex) - phi
+        ct = (ex * cp + ey * sp) / h
+        st = (ey * cp - ex * sp) / h
+    else:
+        ct, st = 1.0, 0.0
+    ctd = ct * ch + st * sh  # cos(theta - dphi / 2)
+    std = st * ch - ct * sh
     for ell in range(3):
-        lx, ly = r_R * math.cos(g3 * ell), r_R * math.sin(g3 * ell)
+        lx, ly = r_R * _RX_C[ell], r_R * _RX_S[ell]
         alpha = dd * (lx * ch + ly * sh)
         rot = lx * st - ly * ct
         beta = h * (dd * ctd + dph * rot)

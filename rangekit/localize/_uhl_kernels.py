@@ -44,14 +44,35 @@ def _cost(a: np.ndarray, b: np.ndarray, phi: float) -> float:
 
 
 @njit(cache=True)
-def _f7(a1: float, a2: float, a3: float, b1: float, b2: float, phi: float) -> float:
-    """Eq (7) of Kim & Kim 2013 (``dJ/dphi / 2`` for the cost ``J`` of eq (5))."""
-    return (
-        a3 * math.cos(2.0 * phi)
-        + 0.5 * (a2 - a1) * math.sin(2.0 * phi)
-        + b2 * math.cos(phi)
-        - b1 * math.sin(phi)
-    )
+def _f7cs(a1: float, a2: float, a3: float, b1: float, b2: float, c: float, s: float) -> float:
+    """Eq (7) from ``c = cos(phi)``, ``s = sin(phi)``."""
+    return a3 * (c * c - s * s) + (a2 - a1) * s * c + b2 * c - b1 * s
+
+
+@njit(cache=True)
+def _zero_in(
+    a1: float, a2: float, a3: float, b1: float, b2: float, lo: float, hi: float, flo: float
+) -> float:
+    """The zero of eq (7) in the bracket ``[lo, hi]`` (``f(lo) = flo``, sign change):
+    Newton steps, bisection whenever a step leaves the bracket."""
+    x = 0.5 * (lo + hi)
+    for _ in range(100):
+        c, s = math.cos(x), math.sin(x)
+        f = _f7cs(a1, a2, a3, b1, b2, c, s)
+        if f == 0.0:
+            return x
+        if (f < 0.0) == (flo < 0.0):
+            lo, flo = x, f
+        else:
+            hi = x
+        fp = -2.0 * a3 * 2.0 * s * c + (a2 - a1) * (c * c - s * s) - b2 * s - b1 * c
+        nx = x - f / fp if fp != 0.0 else 0.5 * (lo + hi)
+        if not lo < nx < hi:
+            nx = 0.5 * (lo + hi)
+        if abs(nx - x) < 1e-15 or hi - lo < 1e-15:
+            return nx
+        x = nx
+    return x
 
 
 @njit(cache=True)
@@ -108,30 +129,20 @@ def heading(txy: np.ndarray, d2: np.ndarray, r_R: float) -> float:
     nc = 0
     step = 2.0 * math.pi / _NGRID
     phi0 = -math.pi + 0.3 * step  # off the grid of "round" angles such as 0 and pi
-    f_first = _f7(a1, a2, a3, b1, b2, phi0)
+    cd, sd = math.cos(step), math.sin(step)
+    cg, sg = math.cos(phi0), math.sin(phi0)
+    f_first = _f7cs(a1, a2, a3, b1, b2, cg, sg)
     f_prev = f_first
     for g in range(1, _NGRID + 1):
-        phi_g = phi0 + g * step
+        cg, sg = cg * cd - sg * sd, sg * cd + cg * sd  # rotate by one grid step
         # the last point is the first one again: the same value closes the circle
-        f_g = f_first if g == _NGRID else _f7(a1, a2, a3, b1, b2, phi_g)
+        f_g = f_first if g == _NGRID else _f7cs(a1, a2, a3, b1, b2, cg, sg)
+        lo = phi0 + (g - 1) * step
         if f_prev == 0.0:
-            cands[nc] = phi_g - step
+            cands[nc] = lo
             nc += 1
         elif f_prev * f_g < 0.0:
-            lo, hi, flo = phi_g - step, phi_g, f_prev
-            for _ in range(60):
-                mid = 0.5 * (lo + hi)
-                fm = _f7(a1, a2, a3, b1, b2, mid)
-                if fm == 0.0:
-                    lo = hi = mid
-                    break
-                if (fm < 0.0) == (flo < 0.0):
-                    lo, flo = mid, fm
-                else:
-                    hi = mid
-                if hi - lo < 1e-15:
-                    break
-            cands[nc] = 0.5 * (lo + hi)
+            cands[nc] = _zero_in(a1, a2, a3, b1, b2, lo, lo + step, f_prev)
             nc += 1
         f_prev = f_g
 
@@ -183,20 +194,38 @@ def sphere_ls(centres: np.ndarray, rhs_r2: np.ndarray) -> tuple[float, float]:
     """Least-squares ``(x, y)`` from ``|c_k - p|^2 = r2_k`` linearised in
     ``(x, y, x^2 + y^2)``: the spherical interpolation of Kim & Kim 2013 eq (10)."""
     m = centres.shape[0]
-    g = np.empty((m, 3))
-    h = np.empty(m)
+    # normal equations of rows [c_x, c_y, -0.5] . [x, y, w] = (|c|^2 - r2) / 2, summed
+    # directly (the frame is centred on the Txs, so they are well conditioned)
+    gtg = np.zeros((3, 3))
+    gth = np.zeros(3)
     for k in range(m):
-        g[k, 0] = centres[k, 0]
-        g[k, 1] = centres[k, 1]
-        g[k, 2] = -0.5
-        h[k] = 0.5 * (centres[k, 0] ** 2 + centres[k, 1] ** 2 - rhs_r2[k])
-    # normal equations (the frame is centred on the Txs, so they are well conditioned)
-    gtg = g.T @ g
-    det = np.linalg.det(gtg)
-    if abs(det) > 1e-12 * np.trace(gtg) ** 3:
-        sol = np.linalg.solve(gtg, g.T @ h)
-    else:
-        sol = np.linalg.lstsq(g, h)[0]
+        r0, r1, r2 = centres[k, 0], centres[k, 1], -0.5
+        h = 0.5 * (centres[k, 0] ** 2 + centres[k, 1] ** 2 - rhs_r2[k])
+        gtg[0, 0] += r0 * r0
+        gtg[0, 1] += r0 * r1
+        gtg[0, 2] += r0 * r2
+        gtg[1, 1] += r1 * r1
+        gtg[1, 2] += r1 * r2
+        gtg[2, 2] += r2 * r2
+        gth[0] += r0 * h
+        gth[1] += r1 * h
+        gth[2] += r2 * h
+    gtg[1, 0], gtg[2, 0], gtg[2, 1] = gtg[0, 1], gtg[0, 2], gtg[1, 2]
+    det = (
+        gtg[0, 0] * (gtg[1, 1] * gtg[2, 2] - gtg[1, 2] * gtg[2, 1])
+        - gtg[0, 1] * (gtg[1, 0] * gtg[2, 2] - gtg[1, 2] * gtg[2, 0])
+        + gtg[0, 2] * (gtg[1, 0] * gtg[2, 1] - gtg[1, 1] * gtg[2, 0])
+    )
+    tr = gtg[0, 0] + gtg[1, 1] + gtg[2, 2]
+    if abs(det) > 1e-12 * tr**3:
+        sol = np.linalg.solve(gtg, gth)
+    else:  # rank deficient: minimum-norm least squares
+        g = np.empty((m, 3))
+        hh = np.empty(m)
+        for k in range(m):
+            g[k, 0], g[k, 1], g[k, 2] = centres[k, 0], centres[k, 1], -0.5
+            hh[k] = 0.5 * (centres[k, 0] ** 2 + centres[k, 1] ** 2 - rhs_r2[k])
+        sol = np.linalg.lstsq(g, hh)[0]
     return sol[0], sol[1]
 
 
@@ -298,11 +327,23 @@ def uhl_core(
         z2[i] = tx_xyz[i, 2] ** 2
         for ell in range(3):
             d2[i, ell] = d[i, ell] * d[i, ell]
-    _, sv, vt = np.linalg.svd(txy, full_matrices=False)
-    if not sv[0] > 1e-12 * (1.0 + amax):
+    # principal axes of the x-y positions: eigen of the 2x2 scatter matrix
+    sxx = 0.0
+    syy = 0.0
+    sxy = 0.0
+    for i in range(n):
+        sxx += txy[i, 0] * txy[i, 0]
+        syy += txy[i, 1] * txy[i, 1]
+        sxy += txy[i, 0] * txy[i, 1]
+    mean_ev = 0.5 * (sxx + syy)
+    rad = math.hypot(0.5 * (sxx - syy), sxy)
+    sv0 = math.sqrt(max(mean_ev + rad, 0.0))
+    sv1 = math.sqrt(max(mean_ev - rad, 0.0))
+    if not sv0 > 1e-12 * (1.0 + amax):
         return np.nan, np.nan, np.nan, False, np.nan, False
-    collinear = sv.shape[0] < 2 or sv[1] <= COLLINEAR_RTOL * sv[0]
-    u = np.array([vt[0, 0], vt[0, 1]])
+    collinear = sv1 <= COLLINEAR_RTOL * sv0
+    ang = 0.5 * math.atan2(2.0 * sxy, sxx - syy)  # direction of the larger spread
+    u = np.array([math.cos(ang), math.sin(ang)])
     nrm = np.array([-u[1], u[0]])
 
     phi = heading(txy, d2, r_R)
