@@ -36,6 +36,7 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from rangekit import _raycast
+from rangekit._jsondoc import check_header
 from rangekit.errors import InputFileError, InvalidParameterError
 
 __all__ = [
@@ -292,24 +293,9 @@ class FloorPlan:
         >>> FloorPlan.from_json(doc).segments.shape
         (1, 4)
         """
-        if not isinstance(obj, Mapping):
-            raise InvalidParameterError(
-                f"a floor plan must be a JSON object, got {type(obj).__name__}"
-            )
-        for k in ("format", "version", "units", "walls"):
-            if k not in obj:
-                raise InvalidParameterError(f"missing key {k!r}")
-        unknown = sorted(set(obj) - _TOP_KEYS)
-        if unknown:
-            raise InvalidParameterError(f"unknown key {unknown[0]!r}")
-        if obj["format"] != FORMAT:
-            raise InvalidParameterError(f"format={obj['format']!r} must be {FORMAT!r}")
-        if isinstance(obj["version"], bool) or obj["version"] != VERSION:
-            raise InvalidParameterError(
-                f"version={obj['version']!r} is not supported (this rangekit reads {VERSION})"
-            )
-        if obj["units"] != "m":
-            raise InvalidParameterError(f"units={obj['units']!r} must be 'm'")
+        check_header(
+            obj, what="a floor plan", fmt=FORMAT, version=VERSION, body="walls", allowed=_TOP_KEYS
+        )
         walls = obj["walls"]
         if not isinstance(walls, list):
             raise InvalidParameterError(f"walls={walls!r} must be a list of walls")

@@ -59,6 +59,7 @@ from typing import IO, Any
 
 import numpy as np
 
+from rangekit._jsondoc import check_header
 from rangekit.errors import InputFileError, InvalidParameterError, LogFormatError
 from rangekit.io.csvlog import Column, read_table, write_table
 
@@ -398,24 +399,14 @@ def _json_number(where: str, v: Any) -> float:
 
 def _parse(obj: Any) -> Beacons:
     """Beacons from a parsed JSON document, or InvalidParameterError naming the key."""
-    if not isinstance(obj, Mapping):
-        raise InvalidParameterError(
-            f"a beacon file must be a JSON object, got {type(obj).__name__}"
-        )
-    for k in ("format", "version", "units", "transmitters"):
-        if k not in obj:
-            raise InvalidParameterError(f"missing key {k!r}")
-    unknown = sorted(set(obj) - _TOP_KEYS)
-    if unknown:
-        raise InvalidParameterError(f"unknown key {unknown[0]!r}")
-    if obj["format"] != BEACON_FORMAT:
-        raise InvalidParameterError(f"format={obj['format']!r} must be {BEACON_FORMAT!r}")
-    if isinstance(obj["version"], bool) or obj["version"] != BEACON_VERSION:
-        raise InvalidParameterError(
-            f"version={obj['version']!r} is not supported (this rangekit reads {BEACON_VERSION})"
-        )
-    if obj["units"] != "m":
-        raise InvalidParameterError(f"units={obj['units']!r} must be 'm'")
+    check_header(
+        obj,
+        what="a beacon file",
+        fmt=BEACON_FORMAT,
+        version=BEACON_VERSION,
+        body="transmitters",
+        allowed=_TOP_KEYS,
+    )
     txs = obj["transmitters"]
     if not isinstance(txs, list):
         raise InvalidParameterError(f"transmitters={txs!r} must be a list of transmitters")

@@ -299,6 +299,28 @@ def observation(txs: np.ndarray, qs: np.ndarray, qcs: np.ndarray, r_R: float, d_
 
 
 @njit(cache=True)
+def _update(
+    x: np.ndarray, p: np.ndarray, innov: np.ndarray, jac: np.ndarray, r: np.ndarray, gate: float
+) -> bool:
+    """Pose EKF update in place (Joseph form, heading wrapped); False, with nothing
+    changed, when the squared Mahalanobis distance exceeds ``gate`` (> 0)."""
+    s = jac @ p @ jac.T + r
+    si = inv3(s)
+    if gate > 0.0:
+        m2 = innov @ si @ innov
+        if not m2 <= gate:
+            return False
+    k = p @ jac.T @ si
+    ik = np.eye(3) - k @ jac
+    pn = ik @ p @ ik.T + k @ r @ k.T
+    _sym(pn)
+    x += k @ innov
+    x[2] = wrap_angle(x[2])
+    p[:, :] = pn
+    return True
+
+
+@njit(cache=True)
 def correct_ranges(
     x: np.ndarray,
     p: np.ndarray,
@@ -321,20 +343,7 @@ def correct_ranges(
             r[ell, ell] = _MISSING_VAR
             for c in range(3):
                 jac[ell, c] = 0.0
-    s = jac @ p @ jac.T + r
-    si = inv3(s)
-    if gate > 0.0:
-        m2 = innov @ si @ innov
-        if not m2 <= gate:
-            return False
-    k = p @ jac.T @ si
-    ik = np.eye(3) - k @ jac
-    pn = ik @ p @ ik.T + k @ r @ k.T
-    _sym(pn)
-    x += k @ innov
-    x[2] = wrap_angle(x[2])
-    p[:, :] = pn
-    return True
+    return _update(x, p, innov, jac, r, gate)
 
 
 @njit(cache=True)
@@ -344,20 +353,7 @@ def correct_pose(x: np.ndarray, p: np.ndarray, z: np.ndarray, rr: np.ndarray, ga
     distance exceeds ``gate`` (``gate <= 0``: no gate)."""
     innov = z - x
     innov[2] = wrap_angle(innov[2])
-    s = p + rr
-    si = inv3(s)
-    if gate > 0.0:
-        m2 = innov @ si @ innov
-        if not m2 <= gate:
-            return False
-    k = p @ si
-    ik = np.eye(3) - k
-    pn = ik @ p @ ik.T + k @ rr @ k.T
-    _sym(pn)
-    x += k @ innov
-    x[2] = wrap_angle(x[2])
-    p[:, :] = pn
-    return True
+    return _update(x, p, innov, np.eye(3), rr, gate)
 
 
 @njit(cache=True)
