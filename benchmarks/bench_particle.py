@@ -1,0 +1,233 @@
+"""Benchmark the floor-plan particle filters (Girard et al. 2011) and their ray casting.
+
+Floor plans (generated, seeded): an office of 10 x 10 rooms of 3 m x 3 m, every inner
+wall with a 0.9 m door (220 walls, 400 solid segments, all axis-parallel); and the same
+office with a 1.2 m wall at a random angle in each room ("slanted", 320 walls, 500
+segments, 102 wall directions). 100,000 particles uniformly in the building, heading
+0.3 rad, two SRF02s back to back (mounts +-90 deg), 7 rays each (the paper's λ), one core.
+
+Rows:
+
+* ``ray model``: :func:`ray_model_grid` for 100,000 particles x 2 sensors x 7 rays (the
+  δ of eq. (1)); "updates/s" counts one such evaluation as an update of the ranging
+  part. The fast path casts, from each grid cell, only the rays that some wall within
+  their range could send back under eq. (3) (exact; the mean count per particle is
+  printed); the row "all 7 rays cast" times the same numbers without that skip.
+* ``SIR update``: one whole step of ``method="sir"`` with 100,000 particles and one reading
+  per sensor: propagate, wall-crossing tests, the ray model, the likelihood, systematic
+  resampling and roughening (the "100,000 particles x 2 sensors x 7 rays" update).
+* ``Girard update``: one whole step of the paper's filter with ν = 100,000 (κ = 20 -> 2 M
+  candidate moves, crossing tests, merging at τ, eq. (1) on the merged set, keep ν).
+
+Ray casting (first-hit distance, segment and incidence of arbitrary rays, 6 m range, same
+rays for every caster, "slanted" plan): rangekit's numba uniform-grid caster
+(``cast_rays_grid``), the brute-force numba loop behind ``rangekit.floorplan.cast_rays``
+and a plain numpy vectorised baseline (``_raycast._cast_rays_reference``: all ray x
+segment pairs in blocks), rays/s and the ratio to numpy printed. The grid caster must
+agree with the numpy baseline (distance and segment exactly); exits 1 otherwise.
+
+Target (issue 6): >= 10 updates/s for 100,000 particles x 2 sensors x 7 rays on >= 200
+walls, one core.
+
+Run: ``python benchmarks/bench_particle.py [--quick] [--repeats N]``
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+import time
+
+import _one_core  # noqa: F401  (one thread, repo on sys.path; before numpy)
+import numpy as np
+
+from rangekit import _raycast
+from rangekit.floorplan import FloorPlan
+from rangekit.localize import _particle_kernels as K
+from rangekit.localize import particle as P
+from rangekit.sensors.srf02 import SRF02
+
+N_PARTICLES = 100_000
+HEADING = 0.3
+TARGET_UPS = 10.0
+ROOM_M = 3.0
+
+
+def office(n: int = 10, slanted: bool = False, seed: int = 6) -> FloorPlan:
+    """n x n rooms of 3 m; doors in every inner wall; optionally a slanted wall per room."""
+    walls = []
+    for j in range(n + 1):
+        for i in range(n):
+            doors = [] if j in (0, n) else [{"at_m": 1.0, "width_m": 0.9}]
+            a, b = [i * ROOM_M, j * ROOM_M], [(i + 1) * ROOM_M, j * ROOM_M]
+            walls.append({"from": a, "to": b, "doors": doors})
+            a, b = [j * ROOM_M, i * ROOM_M], [j * ROOM_M, (i + 1) * ROOM_M]
+            walls.append({"from": a, "to": b, "doors": doors})
+    if slanted:
+        rng = np.random.default_rng(seed)
+        for i in range(n):
+            for j in range(n):
+                c = np.array([i + 0.5, j + 0.5]) * ROOM_M + rng.uniform(-0.4, 0.4, 2)
+                a = rng.uniform(0, np.pi)
+                d = 0.6 * np.array([math.cos(a), math.sin(a)])
+                walls.append({"from": (c - d).tolist(), "to": (c + d).tolist()})
+    return FloorPlan.from_walls(walls)
+
+
+def rays_cast(grid, sensor: SRF02, mounts: np.ndarray, thr: float, xy: np.ndarray) -> float:
+    """Mean number of rays the fast path casts per particle (the per-cell ray mask)."""
+    ang = (HEADING + mounts)[:, None] + sensor.ray_offsets_rad[None, :]
+    psi = sensor.ray_offsets_rad
+    mask = K._cell_ray_mask(
+        np.cos(ang), np.sin(ang), sensor.max_range_at(psi), math.cos(thr), grid.seg, grid.x0,
+        grid.y0, grid.cell_m, grid.nx, grid.ny,
+    )  # fmt: skip
+    c = ((xy[:, 1] - grid.y0) // grid.cell_m).astype(int) * grid.nx
+    c += ((xy[:, 0] - grid.x0) // grid.cell_m).astype(int)
+    return float(mask[c].sum(axis=(1, 2)).mean())
+
+
+def best_of(fn, repeats: int) -> float:
+    fn()  # warm-up (compile or cache load)
+    out = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        fn()
+        out.append(time.perf_counter() - t0)
+    return min(out)
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--quick", action="store_true", help="fewer rays for the slow peers")
+    ap.add_argument("--repeats", type=int, default=5, help="best of N (default 5)")
+    args = ap.parse_args()
+    rep = args.repeats
+    rng = np.random.default_rng(2011)
+    sensor = SRF02()
+    psi = sensor.ray_offsets_rad
+    rmax_ray = sensor.max_range_at(psi)
+    thr = 0.5 * math.pi - sensor.incidence_window_rad - 1e-12
+    mounts = np.array([0.5 * math.pi, -0.5 * math.pi])
+    side = 10 * ROOM_M
+    xy = rng.uniform(0.05, side - 0.05, (N_PARTICLES, 2))
+    rays_per_update = N_PARTICLES * mounts.size * psi.size
+
+    rows = []
+    plans = {"axis-parallel": office(), "slanted": office(slanted=True)}
+    for name, plan in plans.items():
+        grid = K.build_grid(np.ascontiguousarray(plan.segments), 1.0)
+        print(
+            f"plan {name}: {len(plan.walls)} walls, {plan.segments.shape[0]} segments, "
+            f"{grid.orient.size} wall directions, grid {grid.nx} x {grid.ny} cells of 1 m"
+        )
+        margs = (mounts, psi, rmax_ray, thr, sensor.min_range_m, grid)
+        cast = rays_cast(grid, sensor, mounts, thr, xy)
+        t = best_of(lambda g=grid, m=margs: K.ray_model_grid(xy[:, 0], xy[:, 1], HEADING, *m), rep)
+        rows.append((f"ray model, {name} ({cast:.1f} of 14 rays cast per particle)", t))
+        t = best_of(
+            lambda m=margs: K.ray_model_grid(xy[:, 0], xy[:, 1], HEADING, *m, skip_rays=False),
+            rep,
+        )
+        rows.append((f"ray model, {name}, all 7 rays cast", t))
+
+        # One whole SIR update (one reading per sensor, at the particles' end positions).
+        cfg = P.ParticleConfig(method="sir", n_particles=N_PARTICLES, use_readings="latest")
+        world = P._World(plan, cfg, use_plan=True)
+        ctx = P._StepCtx(
+            0, 1.0, np.array([0.0, 0.0]), HEADING, 0.0, 0.03, np.ones(2), np.array([0, 1]),
+            np.array([1.2, 1.7]),
+        )  # fmt: skip
+        w0 = np.full(N_PARTICLES, 1.0 / N_PARTICLES)
+
+        def sir_update(world=world, cfg=cfg, ctx=ctx, w0=w0):
+            g = np.random.default_rng(0)
+            res = P._sir_step(world, cfg, xy, w0, ctx, g)
+            w = res[1] / res[1].sum()
+            P._sir_resample(world, cfg, res[0], w, g)
+
+        rows.append(
+            (f"SIR update, {name} (step + resample + roughening)", best_of(sir_update, rep))
+        )
+
+    # The paper's filter at nu = 100,000 on the axis-parallel office (one step).
+    plan = plans["axis-parallel"]
+    cfg = P.ParticleConfig(n_particles=N_PARTICLES, use_readings="latest")
+    world = P._World(plan, cfg, use_plan=True)
+    vec = 1.25 * np.array([math.cos(HEADING), math.sin(HEADING)])
+    ctx = P._StepCtx(
+        0, 1.0, vec, HEADING, 1.25, 0.03, np.ones(2), np.array([0, 1]), np.array([1.2, 1.7])
+    )
+    cloud = xy[np.hypot(*(xy - side / 2).T) < 6.0][:N_PARTICLES]
+    wg = np.full(cloud.shape[0], 1.0 / cloud.shape[0])
+    stats = {}
+
+    def girard_update():
+        out = P._girard_step(world, cfg, cloud, wg, ctx, np.random.default_rng(0))
+        stats["kept"] = out[0].shape[0]
+
+    t_girard = best_of(girard_update, max(1, rep // 2))
+    rows.append(
+        (f"Girard update, nu = 100,000 ({cloud.shape[0]} parents x 20 -> kept {stats['kept']})",
+         t_girard)
+    )  # fmt: skip
+
+    print()
+    w = max(len(r[0]) for r in rows)
+    print(f"{'update (100,000 particles x 2 sensors x 7 rays)':<{w}}  {'ms':>8}  {'updates/s':>9}")
+    for label, t in rows:
+        print(f"{label:<{w}}  {t * 1e3:8.1f}  {1.0 / t:9.1f}")
+    print(f"(one update = {rays_per_update:,} model rays; target >= {TARGET_UPS:g} updates/s)")
+
+    # Ray casting: grid vs brute force vs numpy, on the slanted plan.
+    plan = plans["slanted"]
+    seg = np.ascontiguousarray(plan.segments)
+    grid = K.build_grid(seg, 1.0)
+    n_rays = 1_400_000
+    n_np = 20_000 if args.quick else 100_000
+    ox, oy = rng.uniform(0.05, side - 0.05, (2, n_rays))
+    a = rng.uniform(-np.pi, np.pi, n_rays)
+    dx, dy = np.cos(a), np.sin(a)
+    rmax = np.full(n_rays, 6.0)
+    excl = np.full(n_rays, -1, np.int64)
+    t_grid = best_of(lambda: K.cast_rays_grid(ox, oy, dx, dy, rmax, grid), rep)
+    brute = _raycast._compiled("cast")
+    nb = 200_000
+    t_brute = best_of(
+        lambda: brute(ox[:nb], oy[:nb], dx[:nb], dy[:nb], rmax[:nb], seg, excl[:nb]), 2
+    )
+    sl = slice(0, n_np)
+    np_args = (ox[sl], oy[sl], dx[sl], dy[sl], rmax[sl], seg, excl[sl])
+    t_np = best_of(lambda: _raycast._cast_rays_reference(*np_args), 2)
+    r_grid, r_brute, r_np = n_rays / t_grid, nb / t_brute, n_np / t_np
+    print()
+    print(f"ray casting, slanted plan ({seg.shape[0]} segments), random rays of 6 m:")
+    print(f"  numba uniform grid (rangekit)     {r_grid / 1e6:8.2f} M rays/s  ({n_rays:,} rays)")
+    print(f"  numba brute force (floorplan)     {r_brute / 1e6:8.2f} M rays/s  ({nb:,} rays)")
+    print(f"  numpy vectorised baseline         {r_np / 1e6:8.2f} M rays/s  ({n_np:,} rays)")
+    print(
+        f"  ratio grid / numpy: {r_grid / r_np:.0f}x; grid / brute force: {r_grid / r_brute:.1f}x"
+    )
+
+    ref = _raycast._cast_rays_reference(*np_args)
+    got = K.cast_rays_grid(ox[sl], oy[sl], dx[sl], dy[sl], rmax[sl], grid)
+    agree = np.array_equal(ref[0], got[0], equal_nan=True) and np.array_equal(ref[1], got[1])
+    print(f"agree with the numpy baseline (distance and segment, {n_np:,} rays): "
+          f"{'yes' if agree else 'NO'}")  # fmt: skip
+    ups = {label: 1.0 / t for label, t in rows}
+    sir_axis = next(v for k, v in ups.items() if k.startswith("SIR update, axis"))
+    sir_slanted = next(v for k, v in ups.items() if k.startswith("SIR update, slanted"))
+    print(
+        f"target >= {TARGET_UPS:g} updates/s (SIR update): axis-parallel office "
+        f"{'met' if sir_axis >= TARGET_UPS else 'NOT met'} ({sir_axis:.1f}/s); slanted office "
+        f"{'met' if sir_slanted >= TARGET_UPS else 'NOT met'} ({sir_slanted:.1f}/s)"
+    )
+    if not agree:
+        print("\nFAIL: the grid caster disagrees with the numpy baseline", file=sys.stderr)
+        return 1
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
