@@ -368,7 +368,7 @@ def _duhl(log, filter_, *, beacons, initial_pose, wheel_base, sigma_d, k_v, gate
         OBS_RESIDUAL,
         OBS_USED,
     )
-    from rangekit.localize.duhl import DUHLConfig, track_duhl
+    from rangekit.localize.duhl import DUHLConfig, track_log
 
     if beacons is None:
         raise click.UsageError(
@@ -392,20 +392,8 @@ def _duhl(log, filter_, *, beacons, initial_pose, wheel_base, sigma_d, k_v, gate
                 f"{name}: the distance row at t_s={t_s:g} names transmitter {int(tx)}, which "
                 f"is not in the beacon file {str(beacons)!r} (ids: {sorted(known)})"
             )
-    o = dlog.odometry
     try:
-        trk = track_duhl(
-            o.t_s,
-            o.v_right_mps,
-            o.v_left_mps,
-            d.t_s,
-            d.tx,
-            d.d_m,
-            bcn.xyz_m,
-            tx_ids=bcn.ids,
-            config=config,
-            initial_pose=pose0,
-        )
+        trk = track_log(dlog, bcn, config=config, initial_pose=pose0)
     except InvalidParameterError as e:
         # The options are checked above, so what is left is the log itself (no odometry,
         # never two transmitters heard to start from).

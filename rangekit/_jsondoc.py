@@ -1,9 +1,12 @@
-"""Header checks shared by rangekit's JSON input files (floor plans, beacon files)."""
+"""Header and number checks shared by rangekit's JSON input files (floor plans, beacon files)."""
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping, Set
 from typing import Any
+
+import numpy as np
 
 from rangekit.errors import InvalidParameterError
 
@@ -40,3 +43,13 @@ def check_header(
         )
     if obj["units"] != "m":
         raise InvalidParameterError(f"units={obj['units']!r} must be 'm'")
+
+
+def json_number(where: str, v: Any) -> float:
+    """A finite float from a JSON value, or InvalidParameterError naming ``where``."""
+    if isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating)):
+        raise InvalidParameterError(f"{where}={v!r} must be a number")
+    f = float(v)
+    if not math.isfinite(f):
+        raise InvalidParameterError(f"{where}={v!r} must be finite")
+    return f

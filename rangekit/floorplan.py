@@ -36,7 +36,7 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from rangekit import _raycast
-from rangekit._jsondoc import check_header
+from rangekit._jsondoc import check_header, json_number
 from rangekit.errors import InputFileError, InvalidParameterError
 
 __all__ = [
@@ -63,14 +63,7 @@ _WALL_KEYS = {"from", "to", "doors"}
 _DOOR_KEYS = {"at_m", "width_m"}
 
 
-def _number(where: str, v: Any) -> float:
-    """A finite float from a JSON value, or raise naming ``where``."""
-    if isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating)):
-        raise InvalidParameterError(f"{where}={v!r} must be a number")
-    f = float(v)
-    if not math.isfinite(f):
-        raise InvalidParameterError(f"{where}={v!r} must be finite")
-    return f
+_number = json_number
 
 
 def _point(where: str, p: Any) -> tuple[float, float]:

@@ -10,11 +10,22 @@ Examples
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
 
-__all__ = ["Arrivals", "Range", "RangeResult"]
+__all__ = ["Arrivals", "Range", "RangeResult", "RngLike"]
+
+#: What ``rng`` parameters accept (everything :func:`numpy.random.default_rng` does).
+RngLike = (
+    int
+    | Sequence[int]
+    | np.random.SeedSequence
+    | np.random.BitGenerator
+    | np.random.Generator
+    | None
+)
 
 
 @dataclass(frozen=True)

@@ -25,7 +25,7 @@ import numpy as np
 
 from rangekit import _validate as V
 from rangekit.experiments.report import ExperimentReport
-from rangekit.localize.duhl import DUHLConfig, track_duhl, uhl_last_two
+from rangekit.localize.duhl import DUHLConfig, track_log, uhl_last_two
 from rangekit.sim.kim2013 import TRAJECTORIES, simulate
 
 __all__ = ["DEFAULT_TRIALS", "PAPER_TABLE_II", "PAPER_TABLE_III_MS", "SIGNIFICANT_POINTS", "run"]
@@ -84,18 +84,7 @@ def _trial(traj: int, seed: np.random.SeedSequence) -> dict:
     k_of_row = np.searchsorted(odo.t_s, dist.t_s)
     out: dict = {"sim": sim}
     for name, cfg in (("duhl", DUHLConfig()), ("ranges", DUHLConfig(variant="ranges"))):
-        trk = track_duhl(
-            odo.t_s,
-            odo.v_right_mps,
-            odo.v_left_mps,
-            dist.t_s,
-            dist.tx,
-            dist.d_m,
-            b.xyz_m,
-            tx_ids=b.ids,
-            config=cfg,
-            initial_pose=sim.true_pose[0],
-        )
+        trk = track_log(log, b, config=cfg, initial_pose=sim.true_pose[0])
         est = trk.pose[k_of_row]
         truth = sim.true_pose[k_of_row]
         ep, ephi, es = pose_errors(est, truth)
@@ -125,17 +114,14 @@ def _time_per_step(traj: int, seed: int, repeats: int = 5) -> tuple[float, float
     """Median wall time of DUHL over one run: (µs per distance row, µs per odometry row)."""
     sim = simulate(traj, rng=seed)
     log = sim.to_log()
-    odo, dist = log.odometry, log.distances
-    args = (odo.t_s, odo.v_right_mps, odo.v_left_mps, dist.t_s, dist.tx, dist.d_m)
-    kw = {"tx_ids": sim.beacons.ids, "initial_pose": sim.true_pose[0]}
-    track_duhl(*args, sim.beacons.xyz_m, **kw)  # compile / warm
+    track_log(log, sim.beacons, initial_pose=sim.true_pose[0])  # compile / warm
     times = []
     for _ in range(repeats):
         t0 = time.perf_counter()
-        track_duhl(*args, sim.beacons.xyz_m, **kw)
+        track_log(log, sim.beacons, initial_pose=sim.true_pose[0])
         times.append(time.perf_counter() - t0)
     el = float(np.median(times))
-    return el / len(dist.t_s) * 1e6, el / len(odo.t_s) * 1e6
+    return el / len(log.distances.t_s) * 1e6, el / len(log.odometry.t_s) * 1e6
 
 
 def run(

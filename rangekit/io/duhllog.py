@@ -59,7 +59,7 @@ from typing import IO, Any
 
 import numpy as np
 
-from rangekit._jsondoc import check_header
+from rangekit._jsondoc import check_header, json_number
 from rangekit.errors import InputFileError, InvalidParameterError, LogFormatError
 from rangekit.io.csvlog import Column, read_table, write_table
 
@@ -388,15 +388,6 @@ class Beacons:
         }
 
 
-def _json_number(where: str, v: Any) -> float:
-    if isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating)):
-        raise InvalidParameterError(f"{where}={v!r} must be a number")
-    f = float(v)
-    if not math.isfinite(f):
-        raise InvalidParameterError(f"{where}={v!r} must be finite")
-    return f
-
-
 def _parse(obj: Any) -> Beacons:
     """Beacons from a parsed JSON document, or InvalidParameterError naming the key."""
     check_header(
@@ -437,7 +428,7 @@ def _parse(obj: Any) -> Beacons:
             )
         seen[int(tid)] = i
         ids.append(int(tid))
-        xyz.append([_json_number(f"{where}.{k}", t[k]) for k in _TX_KEYS[1:]])
+        xyz.append([json_number(f"{where}.{k}", t[k]) for k in _TX_KEYS[1:]])
     return Beacons(np.array(ids, dtype=np.int64), np.array(xyz))
 
 

@@ -435,12 +435,9 @@ def run_duhl(
                 continue
             if tight:
                 obs_ntx[j] = 1
-                if correct_ranges(x, p, tx_xyz[i], d, var_d, r_R, gate):
-                    obs_status[j] = OBS_USED
-                    status[k] |= ST_OBSERVED
-                else:
-                    obs_status[j] = OBS_GATED
-                    status[k] |= ST_REJECTED
+                used = correct_ranges(x, p, tx_xyz[i], d, var_d, r_R, gate)
+                obs_status[j] = OBS_USED if used else OBS_GATED
+                status[k] |= ST_OBSERVED if used else ST_REJECTED
                 j += 1
                 continue
             if not active[i]:  # eqs (28)-(30)
@@ -487,12 +484,9 @@ def run_duhl(
             else:
                 obs_pose[j] = z
                 obs_cov[j] = rr
-                if correct_pose(x, p, z, rr, gate):
-                    obs_status[j] = OBS_USED
-                    status[k] |= ST_OBSERVED
-                else:
-                    obs_status[j] = OBS_GATED
-                    status[k] |= ST_REJECTED
+                used = correct_pose(x, p, z, rr, gate)
+                obs_status[j] = OBS_USED if used else OBS_GATED
+                status[k] |= ST_OBSERVED if used else ST_REJECTED
             j += 1
         poses[k] = x
         covs[k] = p

@@ -55,6 +55,7 @@ __all__ = [
     "DUHLTrack",
     "UHLLastTwo",
     "track_duhl",
+    "track_log",
     "uhl_last_two",
 ]
 
@@ -424,6 +425,33 @@ def track_duhl(
     )
     track.warnings = _warnings(track)
     return track
+
+
+def track_log(
+    log,
+    beacons,
+    *,
+    config: DUHLConfig | None = None,
+    initial_pose=None,
+    initial_cov=None,
+) -> DUHLTrack:
+    """:func:`track_duhl` on a :class:`~rangekit.io.duhllog.DUHLLog` and its
+    :class:`~rangekit.io.duhllog.Beacons` (what :func:`~rangekit.io.duhllog.read_duhl_log`
+    and :func:`~rangekit.io.duhllog.read_beacons` return)."""
+    o, d = log.odometry, log.distances
+    return track_duhl(
+        o.t_s,
+        o.v_right_mps,
+        o.v_left_mps,
+        d.t_s,
+        d.tx,
+        d.d_m,
+        beacons.xyz_m,
+        tx_ids=beacons.ids,
+        config=config,
+        initial_pose=initial_pose,
+        initial_cov=initial_cov,
+    )
 
 
 def _warnings(track: DUHLTrack) -> list[str]:

@@ -43,6 +43,7 @@ from rangekit.errors import InvalidParameterError
 from rangekit.floorplan import FloorPlan
 from rangekit.io.steplog import RangeLog, StepLog
 from rangekit.sensors.srf02 import SRF02
+from rangekit.types import RngLike
 
 __all__ = [
     "METHODS",
@@ -60,14 +61,6 @@ __all__ = [
     "weighted_mean",
 ]
 
-RngLike = (
-    int
-    | Sequence[int]
-    | np.random.SeedSequence
-    | np.random.BitGenerator
-    | np.random.Generator
-    | None
-)
 
 #: Filters :func:`track_particles` runs.
 METHODS = ("girard", "sir")

@@ -30,7 +30,6 @@ from __future__ import annotations
 
 import functools
 import math
-from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -41,6 +40,7 @@ from rangekit._validate import in_range, positive, positive_int
 from rangekit.errors import InvalidParameterError
 from rangekit.floorplan import FloorPlan
 from rangekit.physics import speed_of_sound_m_s
+from rangekit.types import RngLike
 
 __all__ = [
     "BEAM_WIDTH_RAD",
@@ -68,14 +68,6 @@ __all__ = [
     "simulate_readings",
 ]
 
-RngLike = (
-    int
-    | Sequence[int]
-    | np.random.SeedSequence
-    | np.random.BitGenerator
-    | np.random.Generator
-    | None
-)
 
 #: Transducer frequency (datasheet): 40 kHz, one transducer sends and receives.
 FREQUENCY_HZ = 40_000.0

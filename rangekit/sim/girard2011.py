@@ -32,7 +32,6 @@ Examples
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -43,6 +42,7 @@ from rangekit.errors import InvalidParameterError
 from rangekit.floorplan import FloorPlan
 from rangekit.io.steplog import RangeLog, StepLog
 from rangekit.sensors import srf02
+from rangekit.types import RngLike
 
 __all__ = [
     "LEG_STEPS",
@@ -55,14 +55,6 @@ __all__ = [
     "test_area",
 ]
 
-RngLike = (
-    int
-    | Sequence[int]
-    | np.random.SeedSequence
-    | np.random.BitGenerator
-    | np.random.Generator
-    | None
-)
 
 #: The step length pre-set in the paper's system (§3.3), m.
 STEP_LENGTH_M = 1.25

@@ -15,24 +15,14 @@ True
 
 from __future__ import annotations
 
-from collections.abc import Sequence
-
 import numpy as np
 
 from rangekit._validate import positive_int
 from rangekit.errors import InvalidParameterError
+from rangekit.types import RngLike
 
 __all__ = ["NOISE_KINDS", "RngLike", "make_noise", "pink_noise", "white_noise"]
 
-#: What ``rng`` parameters accept (everything :func:`numpy.random.default_rng` does).
-RngLike = (
-    int
-    | Sequence[int]
-    | np.random.SeedSequence
-    | np.random.BitGenerator
-    | np.random.Generator
-    | None
-)
 
 #: Noise kinds understood by :func:`make_noise`.
 NOISE_KINDS = ("white", "pink")
