@@ -15,8 +15,9 @@ from rangekit_cli._options import (
     output_option,
 )
 
-FILTERS = ("range-ekf", "dead-reckoning", "lmax", "duhl", "duhl-ranges")
+FILTERS = ("range-ekf", "dead-reckoning", "lmax", "duhl", "duhl-ranges", "particle")
 _DUHL = ("duhl", "duhl-ranges")
+_PF = ("particle",)
 
 #: Which filters each filter-specific option applies to (option name -> filters).
 _APPLIES = {
@@ -32,6 +33,15 @@ _APPLIES = {
     "--wheel-base": _DUHL,
     "--sigma-d": _DUHL,
     "--k-v": _DUHL,
+    "--map": _PF,
+    "--steps": _PF,
+    "--ranges": _PF,
+    "--start": _PF,
+    "--method": _PF,
+    "--mode": _PF,
+    "--particles": _PF,
+    "--mounts": _PF,
+    "--seed": _PF,
 }
 
 #: Defaults of the duhl options, for the help text only (the values used are those of
@@ -40,7 +50,10 @@ _APPLIES = {
 DUHL_DEFAULTS = {"wheel_base_m": 0.33, "sigma_d_m": 0.01, "k_v_m": 4e-4}
 
 #: Track columns that hold whole numbers (written as integers).
-_INT_COLUMNS = frozenset({"target", "status"})
+_INT_COLUMNS = frozenset({"target", "status", "n_particles"})
+
+#: Columns of the particle filter's track.
+PARTICLE_COLUMNS = ("t_s", "x_m", "y_m", "n_particles", "spread_m")
 
 #: Columns of the duhl and duhl-ranges tracks.
 DUHL_COLUMNS = (
@@ -56,7 +69,7 @@ DUHL_COLUMNS = (
 
 
 @click.command("track")
-@click.argument("log", type=click.Path(dir_okay=True), metavar="LOG.csv")
+@click.argument("log", type=click.Path(dir_okay=True), metavar="LOG.csv", required=False)
 @click.option(
     "--filter",
     "filter_",
@@ -68,7 +81,9 @@ DUHL_COLUMNS = (
     "2007), LOG is a position log; duhl: robot pose from wheel odometry and ceiling "
     "ultrasonic transmitters (Kim & Kim 2013), LOG is a DUHL log, needs --beacons; "
     "duhl-ranges: the same with each Tx's distances fed straight to the EKF (the "
-    "comparison filter, no UHL).",
+    "comparison filter, no UHL); particle: a walker on a floor plan from IMU step events "
+    "and two body-worn ultrasonic range finders (Girard 2011), needs --steps (or LOG) "
+    "and --start.",
 )
 @click.option(
     "--smooth",
@@ -170,6 +185,72 @@ DUHL_COLUMNS = (
     help="duhl, duhl-ranges: odometry noise, variance k_v |v| / dt per wheel, m "
     f"[{DUHL_DEFAULTS['k_v_m']:g}].",
 )
+@click.option(
+    "--map",
+    "map_path",
+    type=click.Path(dir_okay=True),
+    default=None,
+    metavar="PLAN.json",
+    help="particle: the floor plan (docs/floorplan.md); needed by --mode model and ranging.",
+)
+@click.option(
+    "--steps",
+    type=click.Path(dir_okay=True),
+    default=None,
+    metavar="STEPS.csv",
+    help="particle: step events t_s,length_m,heading_rad,heading_sigma_rad "
+    "(docs/formats.md); may be given as LOG instead.",
+)
+@click.option(
+    "--ranges",
+    type=click.Path(dir_okay=True),
+    default=None,
+    metavar="RANGES.csv",
+    help="particle: range readings t_s,sensor,range_m (empty = no echo; docs/formats.md).",
+)
+@click.option(
+    "--start",
+    default=None,
+    metavar="X,Y",
+    help="particle (required): the walker's position at the first step, m (Girard 2011 "
+    "§3.2 step 1).",
+)
+@click.option(
+    "--method",
+    type=click.Choice(["girard", "sir"]),
+    default=None,
+    help="particle: the paper's filter (κ motion vectors, wall elimination, merging, "
+    "eq. (1), keep the ν best) or sequential importance resampling with the SRF02 error "
+    "model [girard].",
+)
+@click.option(
+    "--mode",
+    type=click.Choice(["imu", "model", "ranging"]),
+    default=None,
+    help="particle: steps only; steps + floor plan; steps + plan + range readings "
+    "(Girard 2011 Table 1) [ranging with --ranges, else model with --map, else imu].",
+)
+@click.option(
+    "--particles",
+    type=click.IntRange(min=1, max=10_000_000),
+    default=None,
+    metavar="N",
+    help="particle: ν, the number of particles kept [150, the paper's].",
+)
+@click.option(
+    "--mounts",
+    default=None,
+    metavar="DEG[,DEG...]",
+    help="particle: each range sensor's axis relative to the walking direction, degrees, "
+    "sensor 0 first [90,-90: back to back, sensor 0 facing left].",
+)
+@click.option(
+    "--seed",
+    type=click.IntRange(min=0),
+    default=None,
+    metavar="S",
+    help="particle: random seed (>= 0); the same seed gives the same track [fresh entropy].",
+)
 @format_choice(("csv", "json"), "csv")
 @output_option
 @debug_option
@@ -188,6 +269,15 @@ def track_cmd(
     wheel_base,
     sigma_d,
     k_v,
+    map_path,
+    steps,
+    ranges,
+    start,
+    method,
+    mode,
+    particles,
+    mounts,
+    seed,
     fmt,
     output,
 ):
@@ -199,7 +289,9 @@ def track_cmd(
     as CSV with a header, or JSON with "columns" and "rows". range-ekf also prints a
     one-line summary on stderr (epochs, targets, rejected ranges, re-opened targets,
     skipped epochs); duhl and duhl-ranges print a summary (observations used and
-    rejected, warnings) and then each warning.
+    rejected, warnings) and then each warning. particle reads --steps (and --map,
+    --ranges) and prints t_s, x_m, y_m, n_particles, spread_m per step; each
+    re-initialisation (walker left the map, all particles died) is a warning.
 
     \b
     Examples:
@@ -207,6 +299,8 @@ def track_cmd(
       rangekit track --filter dead-reckoning imu.csv --format json
       rangekit track --filter lmax fixes.csv --l-max 0.5 --i-star 1
       rangekit track --filter duhl run.csv --beacons beacons.json -o pose.csv
+      rangekit track --filter particle --map plan.json --steps steps.csv \\
+          --ranges ranges.csv --start 1.0,1.0 -o track.csv
     """
     given = {
         "--accel-psd": accel_psd is not None,
@@ -221,6 +315,15 @@ def track_cmd(
         "--wheel-base": wheel_base is not None,
         "--sigma-d": sigma_d is not None,
         "--k-v": k_v is not None,
+        "--map": map_path is not None,
+        "--steps": steps is not None,
+        "--ranges": ranges is not None,
+        "--start": start is not None,
+        "--method": method is not None,
+        "--mode": mode is not None,
+        "--particles": particles is not None,
+        "--mounts": mounts is not None,
+        "--seed": seed is not None,
     }
     for opt, used in given.items():
         if used and filter_ not in _APPLIES[opt]:
@@ -229,6 +332,8 @@ def track_cmd(
             )
     if gate is not None and no_gate:
         raise click.UsageError("--gate and --no-gate exclude each other")
+    if filter_ != "particle" and log is None:
+        raise click.UsageError(f"--filter {filter_} needs LOG.csv (missing argument)")
 
     extra: dict = {}
     summary = None
@@ -247,6 +352,20 @@ def track_cmd(
         columns, rows = track_log(log, smooth=smooth, gate=gate)
     elif filter_ == "lmax":
         columns, rows = _lmax(log, l_max, i_star)
+    elif filter_ == "particle":
+        if log is not None and steps is not None:
+            raise click.UsageError("give the step log once: as LOG or as --steps, not both")
+        columns, rows, extra, summary, notes = _particle(
+            log if steps is None else steps,
+            map_path=map_path,
+            ranges=ranges,
+            start=start,
+            method=method,
+            mode=mode,
+            particles=particles,
+            mounts=mounts,
+            seed=seed,
+        )
     else:
         columns, rows, extra, summary, notes = _duhl(
             log,
@@ -267,7 +386,7 @@ def track_cmd(
     else:
         obj = {
             "filter": filter_,
-            "log": str(log),
+            "log": str(log if steps is None else steps),
             "smoothed": bool(smooth),
             "columns": list(columns),
             "rows": table,
@@ -443,3 +562,75 @@ def _duhl(log, filter_, *, beacons, initial_pose, wheel_base, sigma_d, k_v, gate
         "warnings": warnings,
     }
     return DUHL_COLUMNS, rows, extra, summary, warnings
+
+
+def _particle(steps, *, map_path, ranges, start, method, mode, particles, mounts, seed):
+    """Girard 2011 particle filter over a step log (and floor plan, range log)."""
+    import numpy as np
+
+    from rangekit.errors import IncompatibleInputError
+    from rangekit.floorplan import load_floorplan
+    from rangekit.io.steplog import read_range_log, read_step_log
+    from rangekit.localize.particle import ParticleConfig, track_particles
+
+    if steps is None:
+        raise click.UsageError("--filter particle needs the step log (--steps STEPS.csv)")
+    if start is None:
+        raise click.UsageError("--filter particle needs --start X,Y (the first position, m)")
+    xy0 = float_list(start, name="--start")
+    if len(xy0) != 2:
+        raise click.BadParameter(
+            f"{start!r} must be two numbers X,Y (m), got {len(xy0)}", param_hint="--start"
+        )
+    if mode is None:
+        mode = "ranging" if ranges is not None else ("model" if map_path is not None else "imu")
+    if mode in ("model", "ranging") and map_path is None:
+        raise click.UsageError(f"--mode {mode} needs --map PLAN.json (the floor plan)")
+    if mode == "ranging" and ranges is None:
+        raise click.UsageError("--mode ranging needs --ranges RANGES.csv (the range readings)")
+    if mode != "ranging" and ranges is not None:
+        raise click.UsageError(f"--ranges is not used by --mode {mode} (only by ranging)")
+    cfg: dict = {"method": method or "girard", "mode": mode}
+    if particles is not None:
+        cfg["n_particles"] = particles
+    if mounts is not None:
+        cfg["mount_angles_rad"] = tuple(
+            math.radians(a) for a in float_list(mounts, name="--mounts", lo=-360.0, hi=360.0)
+        )
+    config = ParticleConfig(**cfg)
+    slog = read_step_log(steps, name=str(steps))
+    rlog = None if ranges is None else read_range_log(ranges, name=str(ranges))
+    plan = None if map_path is None else load_floorplan(map_path)
+    if rlog is not None and rlog.n_sensors > len(config.mount_angles_rad):
+        n = len(config.mount_angles_rad)
+        raise IncompatibleInputError(
+            f"{ranges}: has readings of sensor {rlog.n_sensors - 1} but --mounts gives "
+            f"{n} sensor(s) (sensor indices 0..{n - 1})"
+        )
+    if plan is not None:
+        x0, y0, x1, y1 = plan.bounds
+        if not (x0 <= xy0[0] <= x1 and y0 <= xy0[1] <= y1):
+            raise IncompatibleInputError(
+                f"--start {xy0[0]:g},{xy0[1]:g} is outside the floor plan {map_path} "
+                f"(x {x0:g}..{x1:g}, y {y0:g}..{y1:g})"
+            )
+    trk = track_particles(plan, slog, rlog, xy0, config, rng=seed)
+    rows = np.column_stack([trk.t_s, trk.xy_m, trk.n_particles, trk.spread_m])
+    notes = [f"step {e.step} (t_s={e.t_s:g}): {e.message}" for e in trk.events]
+    summary = (
+        f"particle ({config.method}, {mode}): {rows.shape[0]} steps, "
+        f"nu={config.n_particles}, {len(trk.events)} re-initialisations"
+    )
+    extra = {
+        "method": config.method,
+        "mode": mode,
+        "map": None if map_path is None else str(map_path),
+        "ranges": None if ranges is None else str(ranges),
+        "start_m": list(xy0),
+        "n_particles": config.n_particles,
+        "seed": seed,
+        "events": [
+            {"step": e.step, "t_s": e.t_s, "kind": e.kind, "message": e.message} for e in trk.events
+        ],
+    }
+    return PARTICLE_COLUMNS, rows, extra, summary, notes

@@ -1,0 +1,193 @@
+"""CLI tests of ``rangekit track --filter particle`` on the simulated Girard 2011 walk."""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+
+import numpy as np
+import pytest
+from clihelp import assert_error, ok, run
+from rangekit_cli.track_cmd import PARTICLE_COLUMNS
+
+from rangekit.localize.particle import ParticleConfig, track_particles, tracking_error
+from rangekit.sim import girard2011
+
+
+@pytest.fixture(scope="module")
+def walk():
+    return girard2011.simulate(rng=3)
+
+
+@pytest.fixture
+def files(tmp_path, walk):
+    plan = tmp_path / "plan.json"
+    plan.write_text(json.dumps(walk.plan.to_json()))
+    steps = tmp_path / "steps.csv"
+    steps.write_text(walk.steps.to_csv())
+    ranges = tmp_path / "ranges.csv"
+    ranges.write_text(walk.ranges.to_csv())
+    return {"plan": plan, "steps": steps, "ranges": ranges, "dir": tmp_path}
+
+
+def _start(walk) -> str:
+    return f"{walk.start_m[0]},{walk.start_m[1]}"
+
+
+def _table(text: str) -> tuple[list[str], np.ndarray]:
+    rows = list(csv.reader(io.StringIO(text)))
+    return rows[0], np.array(rows[1:], dtype=float)
+
+
+def test_ranging_track_matches_library_and_truth(files, walk):
+    args = ["track", "--filter", "particle", "--map", files["plan"], "--steps", files["steps"]]
+    args += ["--ranges", files["ranges"], "--start", _start(walk), "--seed", 7]
+    r = ok(run(args))
+    header, t = _table(r.stdout)
+    assert tuple(header) == PARTICLE_COLUMNS
+    assert t.shape == (len(walk.steps), len(PARTICLE_COLUMNS))
+    # The CLI is the library: same inputs and seed, same numbers.
+    lib = track_particles(walk.plan, walk.steps, walk.ranges, walk.start_m, rng=7)
+    np.testing.assert_allclose(t[:, 1:3], lib.xy_m, rtol=0, atol=1e-9)
+    np.testing.assert_array_equal(t[:, 3], lib.n_particles)
+    # And it tracks: mean error well inside the paper's 0.13 m + margin for one seed.
+    assert tracking_error(t[:, 1:3], walk.truth_m).mean_m < 0.25
+    assert "particle (girard, ranging)" in r.stderr
+
+
+def test_mode_follows_the_inputs_and_json(files, walk):
+    base = ["track", "--filter", "particle", "--steps", files["steps"], "--start", _start(walk)]
+    r = ok(run([*base, "--seed", 1, "--format", "json"]))
+    obj = json.loads(r.stdout)
+    assert obj["mode"] == "imu" and obj["method"] == "girard"
+    assert obj["columns"] == list(PARTICLE_COLUMNS)
+    assert len(obj["rows"]) == len(walk.steps)
+    assert obj["events"] == [] and obj["seed"] == 1
+    # imu mode is the dead-reckoned path moved by at most ε per step (no plan, no ranging).
+    xy = np.array([row[1:3] for row in obj["rows"]])
+    err = tracking_error(xy, walk.dead_reckoning_m)
+    assert err.max_m < 0.25 * np.sqrt(len(walk.steps))
+    r = ok(run([*base, "--map", files["plan"], "--seed", 1, "--format", "json"]))
+    assert json.loads(r.stdout)["mode"] == "model"
+
+
+def test_sir_method_particles_and_mounts(files, walk):
+    out = files["dir"] / "sir.csv"
+    args = ["track", "--filter", "particle", files["steps"], "--map", files["plan"]]
+    args += ["--ranges", files["ranges"], "--start", _start(walk), "--method", "sir"]
+    args += ["--particles", 400, "--mounts", "90,-90", "--seed", 2, "-o", out]
+    r = ok(run(args))
+    assert r.stdout == ""
+    _, t = _table(out.read_text())
+    cfg = ParticleConfig(method="sir", n_particles=400)
+    lib = track_particles(walk.plan, walk.steps, walk.ranges, walk.start_m, cfg, rng=2)
+    np.testing.assert_allclose(t[:, 1:3], lib.xy_m, rtol=0, atol=1e-9)
+    assert t[:, 3].max() <= 400
+
+
+def test_reinitialisation_is_a_warning(files, walk):
+    # A start in the wrong room against the walls: particles die and are re-spread,
+    # reported as warnings, and the run still writes every step.
+    plan = walk.plan
+    steps = files["steps"]
+    text = steps.read_text().splitlines()
+    # Turn every heading by 90 degrees: the walker walks into walls.
+    head = text[0].split(",").index("heading_rad")
+    rows = []
+    for ln in text[1:]:
+        c = ln.split(",")
+        c[head] = str(float(c[head]) + np.pi / 2)
+        rows.append(",".join(c))
+    bad = files["dir"] / "turned.csv"
+    bad.write_text("\n".join([text[0], *rows]) + "\n")
+    args = ["track", "--filter", "particle", "--map", files["plan"], "--steps", bad]
+    args += ["--start", _start(walk), "--seed", 0, "--format", "json"]
+    r = ok(run(args))
+    obj = json.loads(r.stdout)
+    assert len(obj["rows"]) == len(walk.steps)
+    assert obj["events"], "walking through walls must re-initialise"
+    assert {e["kind"] for e in obj["events"]} <= {"left_map", "all_died"}
+    warnings = [ln for ln in r.stderr.splitlines() if ln.startswith("warning: ")]
+    assert len(warnings) == len(obj["events"])
+    xy = np.array([row[1:3] for row in obj["rows"]], dtype=float)
+    assert np.all(np.isfinite(xy))
+    # Re-initialised clouds stay on the plan: every estimate within its bounds.
+    x0, y0, x1, y1 = plan.bounds
+    assert np.all((xy[:, 0] >= x0) & (xy[:, 0] <= x1) & (xy[:, 1] >= y0) & (xy[:, 1] <= y1))
+
+
+@pytest.mark.parametrize(
+    ("extra", "code", "named"),
+    [
+        (["--start", "1,1", "--ranges", "RANGES"], 2, "--map"),
+        (["--map", "PLAN"], 2, "--start"),
+        (["--map", "PLAN", "--start", "1"], 2, "--start"),
+        (["--map", "PLAN", "--start", "a,b"], 2, "--start"),
+        (["--map", "PLAN", "--start", "1,1", "--mode", "ranging"], 2, "--ranges"),
+        (
+            ["--start", "1,1", "--ranges", "RANGES", "--map", "PLAN", "--mode", "model"],
+            2,
+            "--ranges",
+        ),
+        (["--map", "PLAN", "--start", "1,1", "--particles", "0"], 2, "--particles"),
+        (["--map", "PLAN", "--start", "1,1", "--method", "ukf"], 2, "--method"),
+        (["--map", "PLAN", "--start", "1,1", "--mounts", "x"], 2, "--mounts"),
+        (["--map", "PLAN", "--start", "100,1"], 5, "--start"),
+        (
+            ["--map", "PLAN", "--start", "1,1", "--ranges", "RANGES", "--mounts", "90"],
+            5,
+            "--mounts",
+        ),
+    ],
+)
+def test_usage_and_input_errors(files, extra, code, named):
+    sub = {"PLAN": files["plan"], "RANGES": files["ranges"]}
+    args = ["track", "--filter", "particle", "--steps", files["steps"]]
+    args += [sub.get(a, a) for a in extra]
+    assert_error(run(args), code, named)
+
+
+def test_steps_once_and_options_of_other_filters(files):
+    args = ["track", "--filter", "particle", files["steps"], "--steps", files["steps"]]
+    assert_error(run([*args, "--start", "1,1"]), 2, "--steps")
+    args = ["track", "--filter", "particle", "--steps", files["steps"], "--start", "1,1"]
+    assert_error(run([*args, "--l-max", "1"]), 2, "--l-max")
+    assert_error(
+        run(["track", "--filter", "lmax", "x.csv", "--l-max", "1", "--map", "p"]), 2, "--map"
+    )
+    assert_error(run(["track", "--filter", "particle", "--start", "1,1"]), 2, "--steps")
+    assert_error(run(["track", "--filter", "range-ekf"]), 2, "LOG")
+
+
+def test_bad_files(files, walk):
+    d = files["dir"]
+    start = ["--start", _start(walk)]
+    base = ["track", "--filter", "particle", *start]
+    bad_plan = d / "bad_plan.json"
+    plan = walk.plan.to_json()
+    plan["walls"][0]["to"] = plan["walls"][0]["from"]  # zero-length wall
+    bad_plan.write_text(json.dumps(plan))
+    assert_error(run([*base, "--steps", files["steps"], "--map", bad_plan]), 3, "bad_plan.json")
+    bad_steps = d / "bad_steps.csv"
+    lines = files["steps"].read_text().splitlines()
+    lines[3] = lines[3].replace(lines[3].split(",")[1], "-1.0", 1)
+    bad_steps.write_text("\n".join(lines) + "\n")
+    line = assert_error(run([*base, "--steps", bad_steps]), 4, "bad_steps.csv", "length_m")
+    assert "row 4" in line
+    bad_ranges = d / "bad_ranges.csv"
+    lines = files["ranges"].read_text().splitlines()
+    lines[2] = "0.1,7x,1.0"
+    bad_ranges.write_text("\n".join(lines) + "\n")
+    args = [*base, "--steps", files["steps"], "--map", files["plan"], "--ranges", bad_ranges]
+    assert_error(run(args), 4, "bad_ranges.csv", "sensor")
+    missing = d / "no_steps.csv"
+    assert_error(run([*base, "--steps", missing]), 3, "no_steps.csv")
+
+
+def test_failed_run_keeps_existing_output(files, walk):
+    out = files["dir"] / "track.csv"
+    out.write_text("SENTINEL\n")
+    args = ["track", "--filter", "particle", "--steps", files["dir"] / "missing.csv"]
+    assert_error(run([*args, "--start", _start(walk), "-o", out]), 3, "missing.csv")
+    assert out.read_text() == "SENTINEL\n"
