@@ -270,3 +270,54 @@ def emit(text: str, output: str | None) -> None:
         from rangekit.io.sidecar import write_text_atomic
 
         write_text_atomic(output, text)
+
+
+def ultrasonic_kwargs(kw: dict, *, scheme: str, temp_c: float, speed: float | None) -> dict:
+    """Keyword arguments of ``range_ultrasonic_files`` from the ultrasonic options.
+
+    ``kw`` holds the values of :func:`ultrasonic_options` and :func:`beep_options`; beep
+    options (beepbeep only) and one-way-only options with ``scheme="echo"`` are usage
+    errors naming the option.
+    """
+    from rangekit.ranging.ultrasonic import SRF02_MAX_RANGE_M, SRF02_MIN_RANGE_M
+    from rangekit.signals.transducer import Transducer
+
+    for k in ("f_hz", "n_bursts", "spacing", "burst_len", "taper", "beep_fs"):
+        if kw.get(k) is not None:
+            opt = {"f_hz": "--freq", "n_bursts": "--bursts", "beep_fs": "--beep-fs"}.get(
+                k, "--" + k.replace("_", "-")
+            )
+            raise click.UsageError(f"{opt} applies to --scheme beepbeep only")
+    burst = make_burst(kw, scheme=scheme)
+    q = kw.get("q")
+    trans = None if q == 0 else Transducer(q=4.0 if q is None else q)
+    lo = kw.get("min_range")
+    hi = kw.get("max_range")
+    args: dict = {"temp_c": temp_c, "speed_m_s": speed, "period_s": kw.get("period")}
+    if scheme == "oneway":
+        tx_order = None
+        if kw.get("tx_order") is not None:
+            vals = float_list(kw["tx_order"], name="--tx-order", lo=0, hi=1e6)
+            if any(v != int(v) for v in vals):
+                raise click.BadParameter("ids must be whole numbers", param_hint="--tx-order")
+            tx_order = [int(v) for v in vals]
+        args.update(
+            tx=trans,
+            rx=trans,
+            latency_s=kw.get("latency") or 0.0,
+            tx_ids=tx_order,
+            min_range_m=0.0 if lo is None else lo,
+            max_range_m=15.0 if hi is None else hi,
+        )
+        channels = 3 if kw.get("channels") is None else kw["channels"]
+    else:
+        for k in ("latency", "tx_order"):
+            if kw.get(k) is not None:
+                raise click.UsageError(f"--{k.replace('_', '-')} applies to --scheme oneway only")
+        args.update(
+            transducer=trans,
+            min_range_m=SRF02_MIN_RANGE_M if lo is None else lo,
+            max_range_m=SRF02_MAX_RANGE_M if hi is None else hi,
+        )
+        channels = kw.get("channels")
+    return {"channels": channels, "burst": burst, **args}

@@ -30,6 +30,7 @@ class RangekitGroup(click.Group):
         "track": ("rangekit_cli.track_cmd", "track_cmd"),
         "locate": ("rangekit_cli.locate_cmd", "locate_cmd"),
         "experiment": ("rangekit_cli.experiment_cmd", "experiment_cmd"),
+        "batch": ("rangekit_cli.batch_cmd", "batch_cmd"),
     }
 
     def list_commands(self, ctx):

@@ -1,0 +1,211 @@
+"""``rangekit batch``: range a whole archive of recordings, in parallel and resumably."""
+
+from __future__ import annotations
+
+import os
+
+import click
+from rangekit_cli._options import (
+    FiniteRange,
+    beep_options,
+    debug_option,
+    detector_option,
+    float_list,
+    make_beep,
+    temperature_option,
+    ultrasonic_kwargs,
+    ultrasonic_options,
+)
+
+#: Exit codes of ``rangekit batch`` beyond the common ones (docs/cli.md).
+EXIT_SOME_FAILED = 8
+EXIT_ALL_FAILED = 9
+
+
+@click.command("batch")
+@click.argument("inputs", nargs=-1, required=True, metavar="INPUT...")
+@click.option(
+    "-o",
+    "--output",
+    required=True,
+    type=click.Path(dir_okay=False),
+    metavar="FILE.csv|FILE.jsonl",
+    help="Results file (required), CSV or JSON Lines by its suffix; written as sessions "
+    "finish, so an interrupted batch keeps every finished result.",
+)
+@click.option(
+    "--jobs",
+    "-j",
+    type=click.IntRange(min=1, max=1024),
+    default=None,
+    metavar="N",
+    help="Worker processes [all cores of this machine].",
+)
+@click.option(
+    "--resume",
+    is_flag=True,
+    help="Continue an interrupted batch into the same -o file: finished sessions are "
+    "skipped, a torn last session is redone; the final file equals an uninterrupted run's.",
+)
+@click.option(
+    "--scheduler",
+    default=None,
+    metavar="tcp://HOST:PORT",
+    help="Run on this Dask distributed scheduler instead of local processes (needs "
+    "pip install 'rangekit[dask]').",
+)
+@click.option(
+    "--scheme",
+    type=click.Choice(["beepbeep", "oneway", "echo"]),
+    default="beepbeep",
+    show_default=True,
+    help="Scheme of sessions whose sidecar does not name one (see rangekit range).",
+)
+@click.option(
+    "--self-distance",
+    "self_distance",
+    metavar="M[,M...]",
+    default="0",
+    show_default=True,
+    help="beepbeep: speaker-to-microphone distance(s), m, where the sidecar gives none.",
+)
+@temperature_option
+@click.option(
+    "--speed-of-sound",
+    "speed",
+    type=FiniteRange(100.0, 2000.0),
+    default=None,
+    metavar="MPS",
+    help="Speed of sound in m/s (overrides --temperature and sidecar temperatures).",
+)
+@click.option(
+    "--clock-ppm",
+    "clock_ppm",
+    type=FiniteRange(0.0, 1e4),
+    default=30.0,
+    show_default=True,
+    help="beepbeep: 1-sigma sample-clock tolerance per device, ppm (widens sigma_m only).",
+)
+@detector_option
+@beep_options
+@ultrasonic_options
+@click.option(
+    "--quiet",
+    "-q",
+    is_flag=True,
+    help="No progress or summary on stderr (errors are still reported).",
+)
+@debug_option
+def batch_cmd(
+    inputs,
+    output,
+    jobs,
+    resume,
+    scheduler,
+    scheme,
+    self_distance,
+    temp_c,
+    speed,
+    clock_ppm,
+    detector,
+    quiet,
+    **kw,
+):
+    """Range every session found in files, folders and globs; one results file.
+
+    INPUT... are recordings, folders (searched recursively) and globs (quote them:
+    'archive/**/*.wav'). Sessions: a sidecar JSON with a "files" list groups its files
+    (and gives the scheme, beep, self-distances and true distances); else NAME_dev0.wav,
+    NAME_dev1.wav, ... in one folder are devices 0, 1, ... of session NAME; else each
+    file is a session (rules in docs/batch.md).
+
+    Writes one row per range (or one error row per failed session) to -o as sessions
+    finish; progress (done/total, rate, ETA) on stderr. A bad file becomes an error row
+    and the batch goes on. Exit 0: every session ranged; 8: some failed; 9: none ranged;
+    130: interrupted (rerun with --resume).
+
+    \b
+    Examples:
+      rangekit batch recordings/ -o results.csv
+      rangekit batch 'archive/**/*.wav' -o results.jsonl --jobs 8 --self-distance 0.1
+      rangekit batch recordings/ -o results.csv --resume
+      rangekit batch recordings/ -o results.csv --scheduler tcp://10.0.0.5:8786
+      rangekit batch logs/ --scheme echo --period 0.07 -o echo.csv
+    """
+    from rangekit.batch import BatchOptions, find_sessions, run_batch
+
+    if scheduler is not None and jobs is not None:
+        raise click.UsageError("--jobs and --scheduler exclude each other")
+    if scheduler is not None and not scheduler.strip():
+        raise click.BadParameter("empty address", param_hint="--scheduler")
+    sd = float_list(self_distance, name="--self-distance", lo=0.0, hi=2.0)
+    if scheme == "beepbeep":
+        for k in ("latency", "period", "tx_order", "channels", "min_range", "max_range"):
+            if kw.get(k) is not None:
+                opt = "--" + k.replace("_", "-")
+                raise click.UsageError(f"{opt} applies to --scheme oneway and echo only")
+        beepbeep = {
+            "beep": make_beep(kw),
+            "detector": detector,
+            "temp_c": temp_c,
+            "speed_m_s": speed,
+            "self_distance_m": sd[0] if len(sd) == 1 else sd,
+            "clock_ppm": clock_ppm,
+        }
+        options = BatchOptions(scheme=scheme, beepbeep=beepbeep)
+    else:
+        options = BatchOptions(
+            scheme=scheme,
+            beepbeep={"detector": detector, "temp_c": temp_c, "speed_m_s": speed},
+            ultrasonic=ultrasonic_kwargs(kw, scheme=scheme, temp_c=temp_c, speed=speed),
+        )
+    sessions = find_sessions(list(inputs))
+    n_jobs = jobs if jobs is not None else (os.cpu_count() or 1)
+    where = f"on {scheduler}" if scheduler else f"{n_jobs} job{'s' if n_jobs != 1 else ''}"
+    state: dict = {"bar": None, "last": 0}
+
+    def progress(done: int, total: int) -> None:
+        if quiet:
+            return
+        if state["bar"] is None:  # first call: done = sessions found in a resumed file
+            from rangekit_cli._progress import Progress
+
+            click.echo(f"batch: {len(sessions)} sessions, {where} -> {output}", err=True)
+            if done:
+                click.echo(f"batch: {done} sessions already in {output}, skipped", err=True)
+            state["bar"] = Progress(total - done, "batch", unit="sessions")
+            state["last"] = done
+        if done > state["last"]:
+            state["bar"].update(done - state["last"])
+            state["last"] = done
+
+    try:
+        summary = run_batch(
+            sessions,
+            output,
+            options,
+            jobs=n_jobs,
+            resume=resume,
+            scheduler=scheduler,
+            progress=progress,
+        )
+    except KeyboardInterrupt:
+        if state["bar"] is not None:
+            state["bar"].close()
+        click.echo(
+            f"rangekit: interrupted: {state['last']} of {len(sessions)} sessions are in "
+            f"{output}; rerun with --resume to finish",
+            err=True,
+        )
+        click.get_current_context().exit(130)
+    if state["bar"] is not None:
+        state["bar"].close()
+    if not quiet:
+        click.echo(
+            f"batch: {summary.ok} of {summary.total} sessions ranged, {summary.failed} failed"
+            + (f" ({summary.skipped} done before this run)" if summary.skipped else "")
+            + f" -> {output}",
+            err=True,
+        )
+    if summary.failed:
+        click.get_current_context().exit(EXIT_ALL_FAILED if summary.ok == 0 else EXIT_SOME_FAILED)
