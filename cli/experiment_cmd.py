@@ -12,6 +12,7 @@ from rangekit_cli._options import debug_option, emit, format_choice, output_opti
 #: ``run(*, trials, seed, plots_dir) -> ExperimentReport`` and ``DEFAULT_TRIALS``.
 EXPERIMENTS: dict[str, str] = {
     "ahn2007": "rangekit.experiments.ahn2007",
+    "girard2011": "rangekit.experiments.girard2011",
     "jiang2018": "rangekit.experiments.jiang2018",
     "kim2013": "rangekit.experiments.kim2013",
 }
@@ -50,7 +51,8 @@ def experiment_cmd(name, trials, seed, fmt, plots, output):
     """Reproduce a paper's experiment by simulation: its numbers beside rangekit's.
 
     NAME is one of: ahn2007 (Ahn & Yu 2007: dead reckoning with bias states, l_max
-    pedestrian filter), jiang2018 (Jiang 2018: tracking people from acoustic ranges),
+    pedestrian filter), girard2011 (Girard 2011: floor-plan particle filter with body-worn
+    range finders, Table 1), jiang2018 (Jiang 2018: tracking people from acoustic ranges),
     kim2013 (Kim & Kim 2013: DUHL robot localisation from ceiling ultrasonic beacons,
     Tables II and III).
     Prints a table of metric, condition, paper, measured, unit (or the JSON report,
@@ -62,6 +64,7 @@ def experiment_cmd(name, trials, seed, fmt, plots, output):
       rangekit experiment jiang2018 --trials 5 --seed 1 --format json -o jiang.json
       rangekit experiment ahn2007 --trials 2 --plots figures/
       rangekit experiment kim2013 --trials 3 --plots figures/
+      rangekit experiment girard2011 --trials 5 --plots figures/
     """
     mod = _load(name)
     n = mod.DEFAULT_TRIALS if trials is None else trials

@@ -1,0 +1,355 @@
+"""Girard et al. 2011 §4 reproduced in simulation: Table 1 and the clouds of Figs 11-13.
+
+Every trial simulates the paper's test walk (:func:`rangekit.sim.girard2011.simulate`: the
+corridor and three rooms, the 26-step path walked twice, 52 steps of a fixed 1.25 m with
+a drifting compass, two SRF02s back to back) and tracks it with
+:func:`rangekit.localize.particle.track_particles` from the true start (the user's
+initialisation, §3.2 step 1):
+
+* the paper's filter (``method="girard"``) at the paper's ν = 150 in Table 1's three modes
+  (IMU only, with model, with ranging), each beside the paper's μ, σ, Max, Min, Ending;
+* the same for sequential importance resampling (``method="sir"``, the "modern variant");
+* with ranging, both filters at ν = 1,000, 10,000 and 100,000 (:data:`NUS`);
+* extras: plain dead reckoning of the step log (Fig. 10), the ratios behind Table 1's
+  ordering, the RMS error over the RMS spread of the cloud, the largest cloud and the
+  re-initialisations.
+
+Every statistic is the mean over trials of the per-run statistic (:func:`~rangekit.
+localize.particle.tracking_error` over the 52 steps). Trials are independent: trial ``i``
+simulates with ``default_rng((seed, i, 0))`` and runs each filter with its own stream
+seeded by ``(seed, i, method, mode, ν)``, so a configuration's numbers do not depend on
+which other configurations are run.
+
+Reproduce with ``rangekit experiment girard2011 --trials N --seed S``; the numbers are in
+``docs/theory/girard2011.md``.
+
+Examples
+--------
+>>> rep = run_table(trials=1, seed=0, nus=(150,))
+>>> row = rep.find("tracking error μ", "with ranging, Girard ν=150")
+>>> row.paper, bool(row.measured < row.paper)
+(0.13, True)
+"""
+
+from __future__ import annotations
+
+import math
+import pathlib
+from collections.abc import Sequence
+
+import numpy as np
+
+from rangekit import _validate as V
+from rangekit.errors import InvalidParameterError
+from rangekit.experiments.report import ExperimentReport
+from rangekit.localize.particle import (
+    MODES,
+    ParticleConfig,
+    ParticleTrack,
+    TrackingError,
+    track_particles,
+    tracking_error,
+)
+from rangekit.sim.girard2011 import GirardRun, simulate
+
+__all__ = [
+    "CLOUD_STEPS",
+    "DEFAULT_TRIALS",
+    "LARGE_NU",
+    "LARGE_NU_TRIALS",
+    "MODE_LABELS",
+    "NUS",
+    "PAPER_NU",
+    "PAPER_TABLE_1",
+    "STATS",
+    "run",
+    "run_table",
+]
+
+#: Seeded walks of :func:`run` by default (about a minute on one core).
+DEFAULT_TRIALS = 10
+#: The paper's particle budget (§3.3).
+PAPER_NU = 150
+#: Particle budgets tried with ranging, for both filters.
+NUS = (150, 1_000, 10_000, 100_000)
+#: From this ν on, SIR (whose cost grows with ν) runs only on the first walks ...
+LARGE_NU = 100_000
+#: ... this many of them.
+LARGE_NU_TRIALS = 2
+#: Steps after which the clouds of Figs 11-13 are drawn (Fig. 13 adds the last step, 52).
+CLOUD_STEPS = (9, 21, 52)
+#: Table 1's rows.
+MODE_LABELS = {"imu": "IMU only", "model": "with model", "ranging": "with ranging"}
+#: Table 1's columns and the :class:`~rangekit.localize.particle.TrackingError` fields.
+STATS = (("μ", "mean_m"), ("σ", "std_m"), ("Max", "max_m"), ("Min", "min_m"),
+         ("Ending", "ending_m"))  # fmt: skip
+#: Girard et al. 2011 Table 1, distance from the true position (m): mode -> (μ, σ, Max,
+#: Min, Ending).
+PAPER_TABLE_1 = {
+    "imu": (0.59, 0.35, 1.47, 0.01, 1.47),
+    "model": (0.47, 0.30, 1.06, 0.01, 1.06),
+    "ranging": (0.13, 0.07, 0.40, 0.03, 0.18),
+}
+
+_METHOD_LABELS = {"girard": "Girard", "sir": "SIR"}
+_METHOD_CODE = {"girard": 0, "sir": 1}
+
+
+def _condition(method: str, mode: str, nu: int) -> str:
+    return f"{MODE_LABELS[mode]}, {_METHOD_LABELS[method]} ν={nu}"
+
+
+def _track(sim: GirardRun, method: str, mode: str, nu: int, stream: tuple[int, ...], save):
+    cfg = ParticleConfig(method=method, mode=mode, n_particles=nu)
+    rng = np.random.default_rng((*stream, _METHOD_CODE[method], MODES.index(mode), nu))
+    return track_particles(
+        sim.plan, sim.steps, sim.ranges, sim.start_m, cfg, rng=rng, save_clouds=save
+    )
+
+
+def _configs(nus: Sequence[int]) -> list[tuple[str, str, int]]:
+    """(method, mode, ν) of every filter run: Table 1 at ν = 150, then the ranging sweep."""
+    out = [(m, mode, PAPER_NU) for m in ("girard", "sir") for mode in MODES]
+    out += [(m, "ranging", nu) for m in ("girard", "sir") for nu in nus if nu != PAPER_NU]
+    return out
+
+
+def _n_trials(method: str, nu: int, trials: int) -> int:
+    return min(trials, LARGE_NU_TRIALS) if method == "sir" and nu >= LARGE_NU else trials
+
+
+def _mean_error(errs: list[TrackingError]) -> TrackingError:
+    return TrackingError(*(float(np.mean([getattr(e, f) for e in errs])) for _, f in STATS))
+
+
+def run_table(
+    *,
+    trials: int = DEFAULT_TRIALS,
+    seed: int = 0,
+    plots_dir: pathlib.Path | None = None,
+    nus: Sequence[int] = NUS,
+) -> ExperimentReport:
+    """Table 1 with the ranging sweep over ``nus`` (what :func:`run` calls with :data:`NUS`).
+
+    Parameters
+    ----------
+    trials : int
+        Seeded walks (>= 1); every configuration runs on each, except SIR at
+        ν >= :data:`LARGE_NU`, which runs on the first :data:`LARGE_NU_TRIALS`.
+    seed : int
+        Seed of all the randomness (>= 0).
+    plots_dir : pathlib.Path, optional
+        If given (an existing folder or one whose parent exists), write the figures of
+        the first walk (Girard's filter, ν = 150): ``girard2011_fig11.png`` (IMU only,
+        clouds after 9 and 21 steps), ``girard2011_fig12.png`` (with model, same steps),
+        ``girard2011_fig13.png`` (with ranging, after 9, 21 and 52 steps),
+        ``girard2011_paths.png`` (true path, dead reckoning and the three estimates, like
+        Fig. 10) and ``girard2011_errors.png`` (error after each step, mean over walks).
+    nus : sequence of int
+        Particle budgets of the ranging sweep (ν = 150, Table 1's, always runs).
+
+    Returns
+    -------
+    ExperimentReport
+        Rows: for each filter and mode at ν = 150 the five Table 1 statistics beside the
+        paper's; the ranging sweep (five statistics, the paper's ν = 150 numbers beside);
+        the extras listed in the module docstring.
+
+    Raises
+    ------
+    InvalidParameterError
+        If ``trials``, ``seed`` or an entry of ``nus`` is out of its domain.
+    """
+    n = V.positive_int("trials", trials)
+    seed = V.positive_int("seed", seed, minimum=0)
+    try:
+        nus = tuple(sorted({V.positive_int("nus[]", nu) for nu in nus}))
+    except TypeError:
+        raise InvalidParameterError(f"nus={nus!r} must be a sequence of integers") from None
+    configs = _configs(nus)
+    rep = ExperimentReport(
+        "girard2011",
+        "Girard et al. 2011 §4: tracking error of the floor-plan particle filter (Table 1)",
+        {
+            "trials": n,
+            "seed": seed,
+            "nus": list(nus),
+            "sir_trials_at_large_nu": min(n, LARGE_NU_TRIALS),
+        },
+    )
+    errs: dict[tuple, list[TrackingError]] = {c: [] for c in configs}
+    per_step: dict[tuple, list[np.ndarray]] = {c: [] for c in configs}
+    spread_ratio: dict[tuple, list[float]] = {c: [] for c in configs}
+    n_max: dict[tuple, int] = dict.fromkeys(configs, 0)
+    events: dict[tuple, int] = dict.fromkeys(configs, 0)
+    dr_errs: list[TrackingError] = []
+    dr_steps: list[np.ndarray] = []
+    first: dict = {}
+    for i in range(n):
+        sim = simulate(rng=np.random.default_rng((seed, i, 0)))
+        dr_errs.append(tracking_error(sim.dead_reckoning_m, sim.truth_m))
+        dr_steps.append(np.hypot(*(sim.dead_reckoning_m - sim.truth_m).T))
+        for c in configs:
+            method, mode, nu = c
+            if i >= _n_trials(method, nu, n):
+                continue
+            save = CLOUD_STEPS if i == 0 and method == "girard" and nu == PAPER_NU else ()
+            trk = _track(sim, method, mode, nu, (seed, i), save)
+            d = np.hypot(*(trk.xy_m - sim.truth_m).T)
+            errs[c].append(tracking_error(trk.xy_m, sim.truth_m))
+            per_step[c].append(d)
+            rms_spread = math.sqrt(float(np.mean(trk.spread_m**2)))
+            rms_err = math.sqrt(float(np.mean(d**2)))
+            spread_ratio[c].append(rms_err / rms_spread if rms_spread > 0 else math.inf)
+            n_max[c] = max(n_max[c], int(trk.n_particles.max()))
+            events[c] += len(trk.events)
+            if save:
+                first[mode] = trk
+        if i == 0:
+            first["sim"] = sim
+
+    mean = {c: _mean_error(v) for c, v in errs.items()}
+    for method in ("girard", "sir"):
+        extra = "" if method == "girard" else "rangekit addition: SIR (modern variant). "
+        for mode in MODES:
+            c = (method, mode, PAPER_NU)
+            for (stat, field), paper in zip(STATS, PAPER_TABLE_1[mode], strict=True):
+                rep.add(
+                    f"tracking error {stat}",
+                    _condition(method, mode, PAPER_NU),
+                    paper,
+                    getattr(mean[c], field),
+                    unit="m",
+                    note=f"{extra}mean over {len(errs[c])} walks of the per-walk statistic",
+                )
+        mu = {mode: mean[(method, mode, PAPER_NU)].mean_m for mode in MODES}
+        p = {mode: PAPER_TABLE_1[mode][0] for mode in MODES}
+        cond = f"{_METHOD_LABELS[method]} ν={PAPER_NU}"
+        rep.add(
+            "μ ratio, with model / IMU only",
+            cond,
+            p["model"] / p["imu"],
+            mu["model"] / mu["imu"],
+            note="acceptance: < 1 (IMU only > with model)",
+        )
+        rep.add(
+            "μ ratio, with ranging / with model",
+            cond,
+            p["ranging"] / p["model"],
+            mu["ranging"] / mu["model"],
+            note="acceptance: < 1 (with model > with ranging)",
+        )
+        for mode in MODES:
+            c = (method, mode, PAPER_NU)
+            rep.add(
+                "RMS error / RMS cloud spread",
+                _condition(method, mode, PAPER_NU),
+                None,
+                float(np.mean(spread_ratio[c])),
+                note="spread: weighted RMS distance of the particles from the estimate; "
+                "1 if the cloud's size matches the error (mean over walks)",
+            )
+
+    for method in ("girard", "sir"):
+        for nu in nus:
+            c = (method, "ranging", nu)
+            k = len(errs[c])
+            fewer = f"only the first {k} of {n} walks (cost grows with ν). " if k < n else ""
+            if nu != PAPER_NU:
+                for (stat, field), paper in zip(STATS, PAPER_TABLE_1["ranging"], strict=True):
+                    rep.add(
+                        f"tracking error {stat}",
+                        _condition(method, "ranging", nu),
+                        paper,
+                        getattr(mean[c], field),
+                        unit="m",
+                        note=f"{fewer}paper: ν = 150 only; mean over {k} walks",
+                    )
+            rep.add(
+                "largest cloud (particles after a step)",
+                _condition(method, "ranging", nu),
+                None,
+                n_max[c],
+                note=f"{fewer}Girard: τ-merging (5 cm) caps the cloud below ν when ν is "
+                "large; SIR keeps ν",
+            )
+
+    rep.add(
+        "tracking error μ",
+        "dead reckoning (step log alone, Fig. 10)",
+        PAPER_TABLE_1["imu"][0],
+        _mean_error(dr_errs).mean_m,
+        unit="m",
+        note="no filter; the paper's 'IMU only' may be this or the filter without model",
+    )
+    rep.add(
+        "tracking error Ending",
+        "dead reckoning (step log alone, Fig. 10)",
+        PAPER_TABLE_1["imu"][4],
+        _mean_error(dr_errs).ending_m,
+        unit="m",
+    )
+    rep.add(
+        "re-initialisations (every particle eliminated), total",
+        "all filters and walks",
+        None,
+        sum(events.values()),
+        note="; ".join(f"{_condition(*c)}: {v}" for c, v in events.items() if v) or "none",
+    )
+
+    if plots_dir is not None:
+        _plots(pathlib.Path(plots_dir), first, per_step, dr_steps)
+    return rep
+
+
+def _plots(plots_dir: pathlib.Path, first: dict, per_step: dict, dr_steps: list) -> None:
+    from rangekit.plot.girard2011 import figure_clouds, figure_errors, figure_paths
+
+    plots_dir.mkdir(parents=True, exist_ok=True)
+    sim = first["sim"]
+    walls = sim.plan.segments
+    figs = (("imu", "11", (9, 21)), ("model", "12", (9, 21)), ("ranging", "13", CLOUD_STEPS))
+    for mode, fig, steps in figs:
+        trk: ParticleTrack = first[mode]
+        figure_clouds(
+            plots_dir / f"girard2011_fig{fig}.png",
+            walls_m=walls,
+            truth_m=sim.truth_m,
+            estimate_m=trk.xy_m,
+            clouds=[c for c in trk.clouds if c.after_steps in steps],
+            start_m=sim.start_m,
+            title=f"{MODE_LABELS[mode]}, Girard ν={PAPER_NU} (Fig. {fig})",
+        )
+    paths = {"true": sim.truth_m, "dead reckoning": sim.dead_reckoning_m}
+    paths.update({MODE_LABELS[m]: first[m].xy_m for m in MODES})
+    figure_paths(
+        plots_dir / "girard2011_paths.png",
+        walls_m=walls,
+        paths=paths,
+        start_m=sim.start_m,
+        title=f"First walk: truth, dead reckoning and Girard ν={PAPER_NU} (Fig. 10)",
+    )
+    curves = {"dead reckoning": np.mean(dr_steps, axis=0)}
+    styles = {"dead reckoning": "k:"}
+    for method, line in (("girard", "-"), ("sir", "--")):
+        for mode, color in zip(MODES, ("C0", "C1", "C2"), strict=True):
+            label = _condition(method, mode, PAPER_NU)
+            curves[label] = np.mean(per_step[(method, mode, PAPER_NU)], axis=0)
+            styles[label] = color + line
+    figure_errors(
+        plots_dir / "girard2011_errors.png",
+        errors_m=curves,
+        styles=styles,
+        title=f"Distance from the true position after each step (mean over {len(dr_steps)} walks)",
+    )
+
+
+def run(
+    *, trials: int = DEFAULT_TRIALS, seed: int = 0, plots_dir: pathlib.Path | None = None
+) -> ExperimentReport:
+    """Reproduce Girard et al. 2011 Table 1 (and Figs 10-13) in simulation.
+
+    :func:`run_table` with the ranging sweep over :data:`NUS` (ν = 150, 1,000, 10,000,
+    100,000); see there for the parameters, rows and figures.
+    """
+    return run_table(trials=trials, seed=seed, plots_dir=plots_dir, nus=NUS)
