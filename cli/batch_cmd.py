@@ -152,13 +152,15 @@ def batch_cmd(
             "self_distance_m": sd[0] if len(sd) == 1 else sd,
             "clock_ppm": clock_ppm,
         }
-        options = BatchOptions(scheme=scheme, beepbeep=beepbeep)
     else:
-        options = BatchOptions(
-            scheme=scheme,
-            beepbeep={"detector": detector, "temp_c": temp_c, "speed_m_s": speed},
-            ultrasonic=ultrasonic_kwargs(kw, scheme=scheme, temp_c=temp_c, speed=speed),
-        )
+        beepbeep = {"detector": detector, "temp_c": temp_c, "speed_m_s": speed}
+    # The options describe sessions of --scheme; sessions whose sidecar names another
+    # ultrasonic scheme get that scheme's defaults (and their sidecar's values).
+    ultra = {
+        s: ultrasonic_kwargs(kw if s == scheme else {}, scheme=s, temp_c=temp_c, speed=speed)
+        for s in ("oneway", "echo")
+    }
+    options = BatchOptions(scheme=scheme, beepbeep=beepbeep, **ultra)
     sessions = find_sessions(list(inputs))
     n_jobs = jobs if jobs is not None else (os.cpu_count() or 1)
     where = f"on {scheduler}" if scheduler else f"{n_jobs} job{'s' if n_jobs != 1 else ''}"

@@ -17,7 +17,10 @@ Grouping rules (``docs/batch.md``)
    self-distances (a top-level ``self_distance_m``, number or list, or
    ``devices[i].self_distance_m``) and the true distances
    ``pairs[k] = {"a", "b", "distance_m"}`` (the ``true_distance_m`` column).
-   Sidecar values override the command's options for that session.
+   For ``oneway`` and ``echo`` sidecars (``rangekit synth oneway|echo``): ``period_s``,
+   ``latency_s`` (oneway) and the true distances of ``windows[k]`` (``distances_m`` per
+   receiver, or the echo's ``distance_m``). Sidecar values override the command's
+   options for that session.
 2. **Naming rule.** Among the files no sidecar claims, ``NAME_dev0.wav``,
    ``NAME_dev1.wav``, ... in one folder (indices 0..N-1, no gap, N >= 2) are the mono
    recordings of devices 0..N-1 of session ``NAME``.
@@ -96,6 +99,9 @@ class Session:
     truth: tuple[tuple[int, int, float], ...] = ()
     problem: str | None = None
 
+    # ``truth`` holds (a, b, distance) for BeepBeep pairs and (window, channel, distance)
+    # for ultrasonic windows.
+
 
 @dataclass(frozen=True)
 class BatchOptions:
@@ -103,13 +109,15 @@ class BatchOptions:
 
     ``scheme`` is the default scheme; ``beepbeep`` holds the keyword arguments of
     :func:`rangekit.ranging.range_files` (``beep``, ``detector``, ``temp_c``,
-    ``speed_m_s``, ``self_distance_m``, ``clock_ppm``); ``ultrasonic`` those of
-    :func:`rangekit.ranging.ultrasonic.range_ultrasonic_files` except ``scheme``.
+    ``speed_m_s``, ``self_distance_m``, ``clock_ppm``); ``oneway`` and ``echo`` those of
+    :func:`rangekit.ranging.ultrasonic.range_ultrasonic_files` except ``scheme``, for the
+    sessions of each scheme.
     """
 
     scheme: str = "beepbeep"
     beepbeep: dict[str, Any] = field(default_factory=dict)
-    ultrasonic: dict[str, Any] = field(default_factory=dict)
+    oneway: dict[str, Any] = field(default_factory=dict)
+    echo: dict[str, Any] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         if self.scheme not in SCHEMES:
@@ -120,7 +128,8 @@ class BatchOptions:
         parts = {
             "scheme": self.scheme,
             "beepbeep": {k: repr(v) for k, v in sorted(self.beepbeep.items())},
-            "ultrasonic": {k: repr(v) for k, v in sorted(self.ultrasonic.items())},
+            "oneway": {k: repr(v) for k, v in sorted(self.oneway.items())},
+            "echo": {k: repr(v) for k, v in sorted(self.echo.items())},
         }
         return json.dumps(parts, sort_keys=True)
 
@@ -213,7 +222,21 @@ def _sidecar_session(path: Path, obj: dict) -> Session:
         isinstance(d, dict) and isinstance(d.get("self_distance_m"), (int, float)) for d in devices
     ):
         params["self_distance_m"] = [float(d["self_distance_m"]) for d in devices]
+    for key in ("period_s", "latency_s"):
+        if scheme in ("oneway", "echo") and isinstance(obj.get(key), (int, float)):
+            params[key] = float(obj[key])
     truth = []
+    for w in obj.get("windows") or ():
+        if not isinstance(w, dict) or not isinstance(w.get("window"), int):
+            continue
+        if scheme == "oneway" and isinstance(w.get("distances_m"), list):
+            truth += [
+                (w["window"], c, float(d))
+                for c, d in enumerate(w["distances_m"])
+                if isinstance(d, (int, float))
+            ]
+        elif scheme == "echo" and isinstance(w.get("distance_m"), (int, float)):
+            truth.append((w["window"], 0, float(w["distance_m"])))
     for p in obj.get("pairs") or ():
         if isinstance(p, dict) and all(isinstance(p.get(k), (int, float)) for k in "ab"):
             d = p.get("distance_m")
@@ -324,9 +347,15 @@ def _beepbeep_rows(session: Session, opts: BatchOptions) -> list[dict[str, Any]]
 def _ultrasonic_rows(session: Session, scheme: str, opts: BatchOptions) -> list[dict[str, Any]]:
     from rangekit.ranging.ultrasonic import range_ultrasonic_files
 
-    kw = dict(opts.ultrasonic)
-    if "temp_c" in session.params and kw.get("speed_m_s") is None:
-        kw["temp_c"] = session.params["temp_c"]
+    kw = dict(opts.oneway if scheme == "oneway" else opts.echo)
+    p = session.params
+    if "temp_c" in p and kw.get("speed_m_s") is None:
+        kw["temp_c"] = p["temp_c"]
+    if "period_s" in p:
+        kw["period_s"] = p["period_s"]
+    if "latency_s" in p and scheme == "oneway":
+        kw["latency_s"] = p["latency_s"]
+    truth = {(w, c): d for w, c, d in session.truth}
     rows = []
     for r in range_ultrasonic_files(list(session.files), scheme=scheme, **kw):
         rows.append(
@@ -339,6 +368,7 @@ def _ultrasonic_rows(session: Session, scheme: str, opts: BatchOptions) -> list[
                 channel=r["channel"],
                 distance_m=r["distance_m"],
                 sigma_m=r["sigma_m"],
+                true_distance_m=truth.get((r["window"], r["channel"])),
                 snr_db=r["snr_db"],
                 arrival_s=r["arrival_s"],
             )

@@ -147,3 +147,43 @@ def test_help_names_the_rules():
     r = ok(run(["batch", "--help"]))
     for s in ("--resume", "--jobs", "--scheduler", "_dev0", "sidecar", "docs/batch.md"):
         assert s in r.stdout
+
+
+def test_ultrasonic_sessions_from_their_sidecars(tmp_path):
+    """Sidecars of `synth oneway` and `synth echo` give scheme, period and truth; the
+    rows equal `rangekit range --scheme ...` on the same file."""
+    ow, ec = tmp_path / "ow", tmp_path / "ec"
+    ow.mkdir()
+    ec.mkdir()
+    ok(
+        run(
+            ["synth", "oneway", "--tx", "1,0.5", "--tx", "-1,2", "--seed", "1", "-o", ow / "ow.wav"]
+        )
+    )
+    plan = tmp_path / "plan.json"
+    walls = [[[0, 0], [4, 0]], [[4, 0], [4, 3]], [[4, 3], [0, 3]], [[0, 3], [0, 0]]]
+    plan.write_text(
+        json.dumps(
+            {
+                "format": "rangekit-floorplan",
+                "version": 1,
+                "units": "m",
+                "walls": [{"from": a, "to": b} for a, b in walls],
+            }
+        )
+    )
+    args = ["synth", "echo", "--map", plan, "--pose", "1,1,90", "--pose", "1,1.5,90"]
+    ok(run([*args, "--seed", "2", "-o", ec / "echo.wav"]))
+    out = tmp_path / "u.csv"
+    ok(run(["batch", ow, ec, "-o", out, "-q"]))  # default --scheme beepbeep: sidecars rule
+    rows = _rows(out)
+    assert {r["scheme"] for r in rows} == {"oneway", "echo"}
+    assert len(rows) == 2 * 3 + 2
+    for r in rows:
+        assert abs(float(r["distance_m"]) - float(r["true_distance_m"])) < 0.005
+    ref = ok(
+        run(["range", "--scheme", "oneway", ow / "ow.wav", "--period", "0.2", "--format", "json"])
+    )
+    want = [x["distance_m"] for x in json.loads(ref.stdout)["ranges"]]
+    got = [float(r["distance_m"]) for r in rows if r["scheme"] == "oneway"]
+    np.testing.assert_allclose(got, want, rtol=0, atol=1e-12)
