@@ -30,6 +30,7 @@ class RangekitGroup(click.Group):
         "track": ("rangekit_cli.track_cmd", "track_cmd"),
         "locate": ("rangekit_cli.locate_cmd", "locate_cmd"),
         "experiment": ("rangekit_cli.experiment_cmd", "experiment_cmd"),
+        "plot": ("rangekit_cli.plot_cmd", "plot"),
         "batch": ("rangekit_cli.batch_cmd", "batch_cmd"),
     }
 
@@ -106,6 +107,7 @@ def cli(ctx: click.Context, debug: bool) -> None:
       rangekit range recording.wav            # distances between the devices
       rangekit detect recording.wav           # what was detected, per channel
       rangekit synth beepbeep --distance 2 -o x.wav   # a simulated exchange + truth
+      rangekit plot spectrogram x.wav -o x.png        # the onsets found, as a picture
 
     Exit codes are listed in docs/cli.md.
     """

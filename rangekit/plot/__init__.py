@@ -12,7 +12,7 @@ from pathlib import Path
 
 from rangekit.errors import InputFileError, InvalidParameterError
 
-__all__ = ["FORMATS", "new_figure", "save_figure"]
+__all__ = ["FORMATS", "check_figure_path", "new_figure", "save_figure"]
 
 #: Output formats chosen by the file suffix.
 FORMATS = (".png", ".pdf", ".svg")
@@ -32,8 +32,33 @@ def new_figure(nrows: int = 1, ncols: int = 1, *, size: tuple[float, float] = (6
     return _pyplot().subplots(nrows, ncols, figsize=size, squeeze=False)
 
 
+def check_figure_path(path: str | os.PathLike) -> Path:
+    """``path`` as a Path if a figure can be written there (checked before any work).
+
+    Raises
+    ------
+    InvalidParameterError
+        The suffix is not one of :data:`FORMATS`.
+    InputFileError
+        The folder does not exist.
+    """
+    path = Path(path)
+    if path.suffix.lower() not in FORMATS:
+        suffix = repr(path.suffix) if path.suffix else "(no suffix)"
+        raise InvalidParameterError(
+            f"plot file {str(path)!r}: unknown format {suffix} (use {', '.join(FORMATS)})"
+        )
+    if not path.parent.is_dir():
+        raise InputFileError(f"cannot write {str(path)!r}: folder does not exist")
+    return path
+
+
 def save_figure(fig, path: str | os.PathLike) -> Path:
     """Write ``fig`` to ``path`` (format from the suffix), close it, return the path.
+
+    The file appears complete or not at all: the figure goes to a temporary file in the
+    same folder, renamed over ``path`` at the end (an existing file stays untouched if
+    writing fails).
 
     Raises
     ------
@@ -42,17 +67,18 @@ def save_figure(fig, path: str | os.PathLike) -> Path:
     InputFileError
         The folder does not exist or is not writable.
     """
-    path = Path(path)
-    if path.suffix.lower() not in FORMATS:
-        raise InvalidParameterError(
-            f"plot file {str(path)!r}: unknown format {path.suffix!r} (use {', '.join(FORMATS)})"
-        )
-    if not path.parent.is_dir():
-        raise InputFileError(f"cannot write {str(path)!r}: folder does not exist")
     try:
-        fig.savefig(path, dpi=110, bbox_inches="tight")
-    except PermissionError:
-        raise InputFileError(f"cannot write {str(path)!r}: permission denied") from None
+        path = check_figure_path(path)
+        tmp = path.with_name(f".{path.name}.part")
+        try:
+            fig.savefig(tmp, format=path.suffix[1:].lower(), dpi=110, bbox_inches="tight")
+            os.replace(tmp, path)
+        except OSError as e:
+            tmp.unlink(missing_ok=True)
+            raise InputFileError(f"cannot write {str(path)!r}: {e.strerror or e}") from None
+        except BaseException:
+            tmp.unlink(missing_ok=True)
+            raise
     finally:
         _pyplot().close(fig)
     return path

@@ -1,0 +1,284 @@
+"""``rangekit plot``: pictures of what happened (PNG, PDF or SVG by the output's suffix)."""
+
+from __future__ import annotations
+
+import math
+
+import click
+from rangekit_cli._options import (
+    FiniteRange,
+    beep_options,
+    debug_option,
+    detector_option,
+    make_beep,
+    temperature_option,
+    ultrasonic_kwargs,
+    ultrasonic_options,
+)
+
+
+def _output(f):
+    """-o/--output FILE (required): the figure; its suffix picks the format."""
+    return click.option(
+        "-o",
+        "--output",
+        type=click.Path(dir_okay=False),
+        required=True,
+        help="Figure to write: .png, .pdf or .svg (written atomically).",
+    )(f)
+
+
+def _channel_option(f):
+    return click.option(
+        "--channel",
+        type=click.IntRange(min=0),
+        default=0,
+        show_default=True,
+        help="Channel of the recording to show, from 0.",
+    )(f)
+
+
+def _start(output: str):
+    """Check the output before any work; returns the path."""
+    from rangekit.plot import check_figure_path
+
+    return check_figure_path(output)
+
+
+def _read_channel(recording: str, channel: int):
+    """One channel of a recording, with a one-line error when it does not exist."""
+    from rangekit.errors import IncompatibleInputError
+    from rangekit.io.audio import read_audio
+
+    x, fs = read_audio(recording)
+    if channel >= x.shape[1]:
+        raise IncompatibleInputError(
+            f"'{recording}' has {x.shape[1]} channel(s): --channel {channel} does not exist "
+            f"(0..{x.shape[1] - 1})"
+        )
+    return x, fs
+
+
+def _done(output: str, what: str) -> None:
+    click.echo(f"wrote {output} ({what})", err=True)
+
+
+@click.group("plot")
+def plot():
+    """Pictures: spectrogram with onsets, matched-filter output, ranges, tracks, error CDFs.
+
+    Every figure goes to -o FILE; the suffix picks the format (.png, .pdf, .svg).
+
+    \b
+    Examples:
+      rangekit plot spectrogram rec.wav --channel 1 -o rec.png
+      rangekit plot matched ow.wav --scheme oneway --period 0.2 --window 3 -o mf.svg
+      rangekit plot ranges series.csv -o ranges.pdf
+      rangekit plot track track.csv --map plan.json --truth truth.csv -o track.png
+      rangekit plot cdf results.jsonl --by scheme -o cdf.png
+    """
+
+
+@plot.command("spectrogram")
+@click.argument("recording", type=click.Path(dir_okay=True), metavar="REC.wav")
+@_channel_option
+@detector_option
+@beep_options
+@_output
+@debug_option
+def spectrogram_cmd(recording, channel, detector, output, **beep_kw):
+    """STFT spectrogram (dB) of one channel, with the detected beep onsets marked.
+
+    The onsets are those `rangekit detect` prints for that channel (same detector and
+    beep options); a channel without beep is drawn without marks.
+    """
+    import numpy as np
+
+    from rangekit.io.audio import Channel
+    from rangekit.plot.figures import plot_spectrogram
+    from rangekit.ranging.pipeline import detect_channel
+
+    _start(output)
+    beep = make_beep(beep_kw)
+    x, fs = _read_channel(recording, channel)
+    src = f"{recording}#{channel}"
+    ch = Channel(np.ascontiguousarray(x[:, channel]), fs, src)
+    arr = detect_channel(ch, beep=beep, detector=detector)
+    plot_spectrogram(
+        ch.x,
+        output,
+        fs=fs,
+        onsets=arr.onset,
+        title=f"{src}: {len(arr)} beep onset(s), {detector} detector",
+        label=f"onset ({detector})",
+    )
+    _done(output, f"{len(arr)} onset(s) marked")
+
+
+@plot.command("matched")
+@click.argument("recording", type=click.Path(dir_okay=True), metavar="REC.wav")
+@click.option(
+    "--scheme",
+    type=click.Choice(["oneway", "echo"]),
+    required=True,
+    help="oneway = RF-synchronised beacons (sample 0 = trigger); echo = SRF02 pulse-echo.",
+)
+@_channel_option
+@click.option(
+    "--window",
+    type=click.IntRange(min=0),
+    default=0,
+    show_default=True,
+    help="Activation window (oneway) or ranging cycle (echo) to show, from 0 (see --period).",
+)
+@temperature_option
+@click.option(
+    "--speed-of-sound",
+    "speed",
+    type=FiniteRange(100.0, 2000.0),
+    default=None,
+    metavar="MPS",
+    help="Speed of sound in m/s (overrides --temperature).",
+)
+@ultrasonic_options
+@_output
+@debug_option
+def matched_cmd(recording, scheme, channel, window, temp_c, speed, output, **kw):
+    """Matched-filter envelope of one channel and window, with the chosen first path.
+
+    The options are those of `rangekit range --scheme oneway|echo`; the marked path is
+    the one that command reports for this channel and window (its distance in the title).
+    """
+    from rangekit.errors import IncompatibleInputError
+    from rangekit.plot.figures import plot_matched
+    from rangekit.ranging.ultrasonic import matched_trace
+    from rangekit.signals.barker import check_burst_fits
+
+    _start(output)
+    args = ultrasonic_kwargs(kw, scheme=scheme, temp_c=temp_c, speed=speed)
+    burst = args.pop("burst")
+    want = args.pop("channels")
+    x, fs = _read_channel(recording, channel)
+    if want is not None and x.shape[1] != want:
+        raise IncompatibleInputError(
+            f"'{recording}' has {x.shape[1]} channel(s) but {want} are expected "
+            f"({'one per receiver' if scheme == 'oneway' else 'one per sensor'}; see --channels)"
+        )
+    check_burst_fits(burst, fs=fs, what=f"'{recording}'")
+    try:
+        trace = matched_trace(
+            x.T,
+            fs=fs,
+            scheme=scheme,
+            channel=channel,
+            window=window,
+            burst=burst.with_fs(fs),
+            **args,
+        )
+    except IncompatibleInputError as e:
+        hint = " (see --period)" if "window" in str(e) else ""
+        raise IncompatibleInputError(f"'{recording}': {e}{hint}") from e
+    plot_matched(trace, output)
+    tof = trace.tof
+    found = f"{tof.distance_m:.4f} m" if math.isfinite(tof.distance_m) else "nothing detected"
+    _done(output, f"channel {channel}, window {window}: {found}")
+
+
+@plot.command("ranges")
+@click.argument("series", type=click.Path(dir_okay=True), metavar="SERIES.csv|json")
+@_output
+@debug_option
+def ranges_cmd(series, output):
+    """Range time series with ±1 sigma and ±2 sigma bands, one line per series.
+
+    SERIES is the output of `rangekit range --series` (CSV, or JSON with a "ranges" list):
+    columns t_s, distance_m, sigma_m and the key a,b (pairs), tx,channel (oneway) or
+    channel (echo). An empty distance is a gap.
+    """
+    import numpy as np
+
+    from rangekit.plot.figures import plot_ranges
+    from rangekit.plot.inputs import read_range_series
+
+    _start(output)
+    s = read_range_series(series)
+    n = sum(int(np.isfinite(x.distance_m).sum()) for x in s)
+    plot_ranges(s, output, title=f"{series}: {len(s)} series, {n} ranges")
+    _done(output, f"{len(s)} series, {n} ranges")
+
+
+@plot.command("track")
+@click.argument("track", type=click.Path(dir_okay=True), metavar="TRACK.csv|json")
+@click.option(
+    "--map",
+    "map_path",
+    type=click.Path(dir_okay=True),
+    default=None,
+    metavar="PLAN.json",
+    help="Floor plan whose walls are drawn (docs/floorplan.md).",
+)
+@click.option(
+    "--truth",
+    type=click.Path(dir_okay=True),
+    default=None,
+    metavar="TRUTH.csv",
+    help="True path(s): columns x_m, y_m (and target), drawn dashed.",
+)
+@click.option(
+    "--ellipses",
+    type=click.IntRange(min=0),
+    default=10,
+    show_default=True,
+    metavar="N",
+    help="A 2-sigma covariance ellipse every N rows of each target (0: none).",
+)
+@_output
+@debug_option
+def track_cmd(track, map_path, truth, ellipses, output):
+    """Trajectories with 2-sigma covariance ellipses over the floor plan.
+
+    TRACK is the output of `rangekit track` (CSV or its JSON): x_m, y_m, optional
+    target; ellipses from var_x_m2, var_y_m2 (cov_xy_m2) or sigma_x_m, sigma_y_m; circles
+    of radius spread_m when only that is given (particle filter).
+    """
+    from rangekit.plot.figures import plot_track
+    from rangekit.plot.inputs import read_track
+
+    _start(output)
+    plan = None
+    if map_path is not None:
+        from rangekit.floorplan import load_floorplan
+
+        plan = load_floorplan(map_path)
+    paths = read_track(track)
+    true = read_track(truth) if truth is not None else ()
+    out = plot_track(paths, output, plan=plan, truth=true, every=ellipses, title=str(track))
+    n_pts = sum(len(v) for v in out.xy_m.values())
+    n_ell = sum(len(v) for v in out.ellipse_rows.values())
+    _done(output, f"{len(paths)} track(s), {n_pts} points, {n_ell} ellipses/circles")
+
+
+@plot.command("cdf")
+@click.argument("results", type=click.Path(dir_okay=True), metavar="RESULTS.csv|jsonl")
+@click.option(
+    "--by",
+    default=None,
+    metavar="COLUMN",
+    help="One curve per value of this column (e.g. scheme) [one curve].",
+)
+@_output
+@debug_option
+def cdf_cmd(results, by, output):
+    """Empirical CDF of the absolute range error across a batch, median and p90 in the legend.
+
+    RESULTS rows need distance_m and true_distance_m; rows where either is empty (null),
+    or whose status is not "ok", are skipped and counted in the title.
+    """
+    from rangekit.plot.figures import plot_cdf
+    from rangekit.plot.inputs import read_batch_errors
+
+    _start(output)
+    batch = read_batch_errors(results, by=by)
+    plot_cdf(batch, output)
+    used = batch.n_rows - batch.n_skipped
+    _done(output, f"{len(batch.errors_m)} curve(s), {used} rows, {batch.n_skipped} skipped")
