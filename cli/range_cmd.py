@@ -12,9 +12,9 @@ from rangekit_cli._options import (
     float_list,
     format_option,
     make_beep,
-    make_burst,
     output_option,
     temperature_option,
+    ultrasonic_kwargs,
     ultrasonic_options,
 )
 
@@ -57,10 +57,57 @@ from rangekit_cli._options import (
 @detector_option
 @beep_options
 @ultrasonic_options
+@click.option(
+    "--series",
+    is_flag=True,
+    help="Long recordings: range block by block with bounded memory and print a time series "
+    "(t_s first); CSV rows are written as they are produced.",
+)
+@click.option(
+    "--block",
+    "block_s",
+    type=FiniteRange(0.001, 1e6),
+    default=None,
+    metavar="S",
+    help="--series: block length in seconds [2^21 samples over all channels].",
+)
+@click.option(
+    "--exchange",
+    "exchange_s",
+    type=FiniteRange(0.001, 3600.0),
+    default=None,
+    metavar="S",
+    help="--series beepbeep: longest time from device 0's beep to the last device's beep "
+    "of one exchange [(N-1) x (beep duration + 0.5 s)].",
+)
+@click.option(
+    "--skew",
+    "skew_s",
+    type=FiniteRange(0.0, 3600.0),
+    default=None,
+    metavar="S",
+    help="--series beepbeep: allowance for the time of flight and for differing recording "
+    "start times [0.1].",
+)
 @format_option
 @output_option
 @debug_option
-def range_cmd(files, scheme, self_distance, temp_c, speed, clock_ppm, detector, fmt, output, **kw):
+def range_cmd(
+    files,
+    scheme,
+    self_distance,
+    temp_c,
+    speed,
+    clock_ppm,
+    detector,
+    series,
+    block_s,
+    exchange_s,
+    skew_s,
+    fmt,
+    output,
+    **kw,
+):
     """Distances from recordings: two-way beeps, one-way beacons or pulse-echo.
 
     beepbeep: FILE... is one WAV with one channel per device (channel i = device i), or
@@ -72,15 +119,33 @@ def range_cmd(files, scheme, self_distance, temp_c, speed, clock_ppm, detector, 
     --period the file holds consecutive activation windows (cycles). Prints one row per
     (file, window, channel); an empty distance means nothing in range.
 
+    --series: a recording of any length is ranged block by block (memory bounded by
+    --block): beepbeep exchanges repeating every few seconds give one row per exchange
+    and pair (t_s, a, b, distance_m, sigma_m, flags); oneway/echo (one FILE, --period
+    required) one row per window and channel, t_s first. An exchange whose beeps are not
+    all found gives an empty distance flagged 'detection' and the series goes on. Use
+    --format csv for huge files (table and json are collected in memory).
+
     \b
     Examples:
       rangekit range exchange.wav --self-distance 0.1
       rangekit range phone0.wav phone1.wav phone2.wav --format json
       rangekit range --scheme oneway beacons.wav --period 0.2 --tx-order 0,1,2,3,4,5
       rangekit range --scheme echo srf02.wav --period 0.07 --format json
+      rangekit range --series phone_log.wav --self-distance 0.1 --format csv -o ranges.csv
+      rangekit range --series --scheme echo srf02_log.wav --period 0.07 --format csv
     """
+    if not series:
+        for opt, v in (("--block", block_s), ("--exchange", exchange_s), ("--skew", skew_s)):
+            if v is not None:
+                raise click.UsageError(f"{opt} applies to --series only")
+    elif scheme != "beepbeep":
+        for opt, v in (("--exchange", exchange_s), ("--skew", skew_s)):
+            if v is not None:
+                raise click.UsageError(f"{opt} applies to --series with --scheme beepbeep only")
+    series_opts = {"block_s": block_s} if series else None
     if scheme != "beepbeep":
-        _range_ultrasonic(files, scheme, temp_c, speed, fmt, output, kw)
+        _range_ultrasonic(files, scheme, temp_c, speed, fmt, output, kw, series_opts)
         return
     from rangekit.io.results import format_ranges
     from rangekit.ranging import range_files
@@ -88,6 +153,34 @@ def range_cmd(files, scheme, self_distance, temp_c, speed, clock_ppm, detector, 
     _refuse_ultrasonic_options(kw)
     sd = float_list(self_distance, name="--self-distance", lo=0.0, hi=2.0)
     beep = make_beep(kw)
+    if series:
+        from rangekit.physics import speed_of_sound_m_s
+        from rangekit.ranging.series import DEFAULT_SKEW_S, range_series_beepbeep
+
+        sink = SeriesSink("beepbeep", fmt, output)
+        items = range_series_beepbeep(
+            files,
+            beep=beep,
+            detector=detector,
+            temp_c=temp_c,
+            speed_m_s=speed,
+            self_distance_m=sd[0] if len(sd) == 1 else sd,
+            clock_ppm=clock_ppm,
+            exchange_s=exchange_s,
+            skew_s=DEFAULT_SKEW_S if skew_s is None else skew_s,
+            block_s=block_s,
+            progress=sink.progress,
+        )
+        c = speed_of_sound_m_s(temp_c) if speed is None else speed
+        meta = {
+            "scheme": scheme,
+            "series": True,
+            "detector": detector,
+            "files": [str(f) for f in files],
+            "speed_of_sound_m_s": c,
+        }
+        sink.run(items, meta)
+        return
     result = range_files(
         files,
         scheme=scheme,
@@ -123,53 +216,191 @@ def _refuse_ultrasonic_options(kw: dict) -> None:
             raise click.UsageError(f"{opt} applies to --scheme oneway and echo only")
 
 
-def _range_ultrasonic(files, scheme, temp_c, speed, fmt, output, kw):
-    from rangekit.ranging.ultrasonic import (
-        SRF02_MAX_RANGE_M,
-        SRF02_MIN_RANGE_M,
-        format_tof,
-        range_ultrasonic_files,
-    )
-    from rangekit.signals.transducer import Transducer
+def _range_ultrasonic(files, scheme, temp_c, speed, fmt, output, kw, series_opts):
+    from rangekit.ranging.ultrasonic import format_tof, range_ultrasonic_files
 
-    for k in ("f_hz", "n_bursts", "spacing", "burst_len", "taper", "beep_fs"):
-        if kw.get(k) is not None:
-            opt = {"f_hz": "--freq", "n_bursts": "--bursts", "beep_fs": "--beep-fs"}.get(
-                k, "--" + k.replace("_", "-")
-            )
-            raise click.UsageError(f"{opt} applies to --scheme beepbeep only")
-    burst = make_burst(kw, scheme=scheme)
-    q = kw["q"]
-    trans = None if q == 0 else Transducer(q=4.0 if q is None else q)
-    lo = kw["min_range"]
-    hi = kw["max_range"]
-    args = {"temp_c": temp_c, "speed_m_s": speed, "period_s": kw["period"]}
-    if scheme == "oneway":
-        tx_order = None
-        if kw["tx_order"] is not None:
-            vals = float_list(kw["tx_order"], name="--tx-order", lo=0, hi=1e6)
-            if any(v != int(v) for v in vals):
-                raise click.BadParameter("ids must be whole numbers", param_hint="--tx-order")
-            tx_order = [int(v) for v in vals]
-        args.update(
-            tx=trans,
-            rx=trans,
-            latency_s=kw["latency"] or 0.0,
-            tx_ids=tx_order,
-            min_range_m=0.0 if lo is None else lo,
-            max_range_m=15.0 if hi is None else hi,
+    args = ultrasonic_kwargs(kw, scheme=scheme, temp_c=temp_c, speed=speed)
+    burst = args.pop("burst")
+    channels = args.pop("channels")
+    if series_opts is not None:
+        from rangekit.ranging.series import range_series_ultrasonic
+
+        if len(files) != 1:
+            raise click.UsageError(f"--series --scheme {scheme} takes one FILE, got {len(files)}")
+        if args["period_s"] is None:
+            raise click.UsageError(f"--series --scheme {scheme} needs --period")
+        sink = SeriesSink(scheme, fmt, output)
+        items = range_series_ultrasonic(
+            files[0],
+            scheme=scheme,
+            channels=channels,
+            burst=burst,
+            progress=sink.progress,
+            **series_opts,
+            **args,
         )
-        channels = 3 if kw["channels"] is None else kw["channels"]
-    else:
-        for k in ("latency", "tx_order"):
-            if kw[k] is not None:
-                raise click.UsageError(f"--{k.replace('_', '-')} applies to --scheme oneway only")
-        args.update(
-            transducer=trans,
-            min_range_m=SRF02_MIN_RANGE_M if lo is None else lo,
-            max_range_m=SRF02_MAX_RANGE_M if hi is None else hi,
-        )
-        channels = kw["channels"]
+        sink.run(items, {"scheme": scheme, "series": True, "files": [str(files[0])]})
+        return
     rows = range_ultrasonic_files(files, scheme=scheme, channels=channels, burst=burst, **args)
     meta = {"scheme": scheme, "files": [str(f) for f in files]}
     emit(format_tof(rows, fmt, scheme=scheme, meta=meta), output)
+
+
+#: Exit code of ``--series`` when stdout is closed early by its reader (128 + SIGPIPE).
+EXIT_BROKEN_PIPE = 141
+
+
+class SeriesSink:
+    """Where ``--series`` output goes: CSV streamed, table and JSON collected.
+
+    CSV rows are written as they are produced and flushed once per block, to stdout or
+    to a temporary ``.FILE.part`` beside ``-o FILE`` that is renamed over FILE only when
+    the series has finished (a failure never leaves a half file at FILE). Table and JSON
+    are collected and written at the end (atomically with ``-o``). Progress goes to stderr
+    (:class:`rangekit_cli._progress.Progress`), and at the end one line counts the
+    exchanges (beepbeep) or rows (oneway/echo) without a detection.
+    """
+
+    def __init__(self, scheme: str, fmt: str, output: str | None) -> None:
+        from rangekit.ranging.series import SERIES_FIELDS
+
+        self.scheme = scheme
+        self.fmt = fmt
+        self.output = output
+        self.fields = SERIES_FIELDS[scheme]
+        self._buf: list[str] = []
+        self._file = None
+        self._tmp = None
+        self._bar = None
+        self._header = False
+
+    def progress(self, done_s: float, total_s: float) -> None:
+        """Library progress callback: flush the block's CSV rows, advance the progress line."""
+        from rangekit_cli._progress import Progress
+
+        self.flush()
+        if self._bar is None:
+            self._bar = Progress(total_s, "range --series", unit="s")
+        self._bar.update(done_s - self._bar.done)
+
+    def _open(self) -> None:
+        if self.output is None or self._file is not None:
+            return
+        from pathlib import Path
+
+        from rangekit.errors import InputFileError
+
+        p = Path(self.output)
+        if not p.parent.exists():
+            raise InputFileError(f"cannot write '{p}': folder '{p.parent}' does not exist")
+        self._tmp = p.with_name(f".{p.name}.part")
+        try:
+            self._file = open(self._tmp, "w", encoding="utf-8", newline="")
+        except OSError as e:
+            raise InputFileError(f"cannot write '{p}': {e.strerror or e}") from e
+
+    def flush(self) -> None:
+        """Write the buffered CSV text (one block's rows) and flush it."""
+        if not self._buf:
+            return
+        text = "".join(self._buf)
+        self._buf.clear()
+        if self._file is None:
+            try:
+                click.echo(text, nl=False)  # click.echo flushes
+            except BrokenPipeError:
+                # The reader went away (`| head`): stop quietly, as SIGPIPE would (128 + 13).
+                import os
+                import sys
+
+                os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+                raise click.exceptions.Exit(EXIT_BROKEN_PIPE) from None
+        else:
+            self._file.write(text)
+            self._file.flush()
+
+    def _csv(self, rows: list[dict]) -> None:
+        from rangekit.io.results import format_rows
+
+        rows = [{k: ("" if v is None else v) for k, v in r.items()} for r in rows]
+        text = format_rows(rows, self.fields, "csv")
+        if self._header:
+            text = text.split("\n", 1)[1]
+        self._header = True
+        self._buf.append(text)
+
+    def _table(self, rows: list[dict]) -> list[dict]:
+        digits = {"distance_m": 4, "sigma_m": 5, "snr_db": 1, "arrival_s": 7}
+        if self.scheme == "beepbeep":
+            digits = {"distance_m": 6, "sigma_m": 6}
+        out = []
+        for r in rows:
+            t = dict(r)
+            t["t_s"] = f"{r['t_s']:.6f}"
+            for k, nd in digits.items():
+                t[k] = "-" if r[k] is None else f"{r[k]:.{nd}f}"
+            if "flags" in t:
+                t["flags"] = ",".join(r["flags"]) or "-"
+            if "tx" in t and t["tx"] is None:
+                t["tx"] = "-"
+            out.append(t)
+        return out
+
+    def run(self, items, meta: dict) -> None:
+        """Consume the library's series; write the output; report on stderr."""
+        import os
+
+        from rangekit.io.results import format_rows
+
+        collected: list[dict] = []
+        n_items = n_bad = n_rows = 0
+        first_error = None
+        ok = False
+        try:
+            if self.fmt == "csv":
+                self._open()
+            for item in items:
+                if self.scheme == "beepbeep":
+                    rows = item.rows()
+                    n_items += 1
+                    if item.error is not None:
+                        n_bad += 1
+                        first_error = first_error or item.error
+                else:
+                    rows = item.rows(scheme=self.scheme)
+                    n_bad += sum(r["distance_m"] is None for r in rows)
+                n_rows += len(rows)
+                if self.fmt == "csv":
+                    self._csv(rows)
+                else:
+                    collected.extend(rows)
+            if self.fmt == "csv":
+                if not self._header:
+                    self._csv([])
+                self.flush()
+            ok = True
+        finally:
+            if self._bar is not None:
+                self._bar.close()
+            if self._file is not None:
+                self._file.close()
+                if ok:
+                    os.replace(self._tmp, self.output)
+                else:
+                    self._tmp.unlink(missing_ok=True)
+        if self.fmt == "table":
+            emit(format_rows(self._table(collected), self.fields, "table"), self.output)
+        elif self.fmt == "json":
+            emit(format_rows(collected, self.fields, "json", meta=meta, key="ranges"), self.output)
+        if n_bad and self.scheme == "beepbeep":
+            click.echo(
+                f"rangekit: {n_bad} of {n_items} exchanges failed detection (empty distance, "
+                f"flag 'detection'); first: {first_error}",
+                err=True,
+            )
+        elif n_bad:
+            click.echo(
+                f"rangekit: {n_bad} of {n_rows} (window, channel) rows without a detection "
+                "(empty distance: nothing in range)",
+                err=True,
+            )

@@ -16,7 +16,7 @@ import numpy as np
 
 from rangekit.errors import AudioFormatError, IncompatibleInputError, InputFileError
 
-__all__ = ["Channel", "load_devices", "read_audio", "write_audio"]
+__all__ = ["Channel", "load_devices", "open_audio", "read_audio", "read_frames", "write_audio"]
 
 
 @dataclass(frozen=True)
@@ -38,6 +38,18 @@ def _sf():
     return soundfile
 
 
+def _readable(path: str | os.PathLike) -> Path:
+    """``path`` as a Path if it is a readable file, else InputFileError naming it."""
+    p = Path(path)
+    if not p.exists():
+        raise InputFileError(f"cannot open '{p}': no such file")
+    if p.is_dir():
+        raise InputFileError(f"cannot open '{p}': it is a directory")
+    if not os.access(p, os.R_OK):
+        raise InputFileError(f"cannot open '{p}': permission denied")
+    return p
+
+
 def read_audio(path: str | os.PathLike) -> tuple[np.ndarray, float]:
     """Read an audio file as float64 of shape (n_samples, n_channels) and its rate in Hz.
 
@@ -48,13 +60,7 @@ def read_audio(path: str | os.PathLike) -> tuple[np.ndarray, float]:
     AudioFormatError
         The file is not audio that libsndfile can decode, or holds no samples.
     """
-    p = Path(path)
-    if not p.exists():
-        raise InputFileError(f"cannot open '{p}': no such file")
-    if p.is_dir():
-        raise InputFileError(f"cannot open '{p}': it is a directory")
-    if not os.access(p, os.R_OK):
-        raise InputFileError(f"cannot open '{p}': permission denied")
+    p = _readable(path)
     sf = _sf()
     try:
         x, fs = sf.read(str(p), dtype="float64", always_2d=True)
@@ -67,6 +73,63 @@ def read_audio(path: str | os.PathLike) -> tuple[np.ndarray, float]:
     if not np.all(np.isfinite(x)):
         raise AudioFormatError(f"'{p}' holds NaN or infinite samples")
     return x, float(fs)
+
+
+def open_audio(path: str | os.PathLike):
+    """Open an audio file for reading in blocks (:func:`read_frames`); close it when done.
+
+    The checks and errors are those of :func:`read_audio`; the file must be seekable
+    (WAV, FLAC, ... on disk). Returns a ``soundfile.SoundFile`` whose ``frames``,
+    ``channels`` and ``samplerate`` give the recording's size and rate without reading it.
+
+    Raises
+    ------
+    InputFileError
+        The file is missing, a directory, or cannot be read.
+    AudioFormatError
+        The file is not audio that libsndfile can decode, holds no samples, or cannot seek.
+    """
+    p = _readable(path)
+    sf = _sf()
+    try:
+        f = sf.SoundFile(str(p))
+    except sf.LibsndfileError as e:
+        raise AudioFormatError(f"'{p}' is not a readable audio file ({e.error_string})") from e
+    except (RuntimeError, TypeError, ValueError) as e:
+        raise AudioFormatError(f"'{p}' is not a readable audio file ({e})") from e
+    if f.frames <= 0:
+        f.close()
+        raise AudioFormatError(f"'{p}' holds no audio samples")
+    if not f.seekable():
+        f.close()
+        raise AudioFormatError(f"'{p}' cannot be read in blocks (the file is not seekable)")
+    return f
+
+
+def read_frames(f, start: int, stop: int) -> np.ndarray:
+    """Samples ``[start, stop)`` of a file opened by :func:`open_audio`, float64 (n, channels).
+
+    The range is clipped to the file; values are those :func:`read_audio` returns for the
+    same samples (both decode with libsndfile to float64 in [-1, 1]).
+
+    Raises
+    ------
+    AudioFormatError
+        The samples hold NaN or infinite values, or cannot be decoded.
+    """
+    start = max(0, int(start))
+    stop = min(int(f.frames), int(stop))
+    if stop <= start:
+        return np.zeros((0, f.channels))
+    sf = _sf()
+    try:
+        f.seek(start)
+        x = f.read(stop - start, dtype="float64", always_2d=True)
+    except (sf.LibsndfileError, RuntimeError) as e:
+        raise AudioFormatError(f"'{f.name}': cannot read samples {start}-{stop} ({e})") from e
+    if not np.all(np.isfinite(x)):
+        raise AudioFormatError(f"'{f.name}' holds NaN or infinite samples (from sample {start})")
+    return x
 
 
 def load_devices(paths: Sequence[str | os.PathLike], *, min_devices: int = 2) -> list[Channel]:

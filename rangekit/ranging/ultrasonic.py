@@ -56,8 +56,10 @@ __all__ = [
     "SRF02_MAX_RANGE_M",
     "SRF02_MIN_RANGE_M",
     "ULTRASONIC_SCHEMES",
+    "MatchedTrace",
     "ToF",
     "format_tof",
+    "matched_trace",
     "range_echo",
     "range_oneway",
     "range_ultrasonic_files",
@@ -171,8 +173,12 @@ def _ranges(
     tx_ids: Sequence[int] | None,
     thresholds: dict,
     block: int,
+    first_window: int = 0,
 ) -> list[ToF]:
-    """Shared core: per channel, per window first paths -> distances ``scale*c*(t - off)``."""
+    """Shared core: per channel, per window first paths -> distances ``scale*c*(t - off)``.
+
+    Window ``w`` of ``windows`` is numbered ``first_window + w`` (its transmitter too).
+    """
     lo = max(0, int(math.floor(lo_s * fs)) - 1)
     hi = int(math.ceil(hi_s * fs)) + 2
     rows: list[ToF] = []
@@ -188,17 +194,49 @@ def _ranges(
         )
         found = dict(zip(arr.window.tolist(), range(len(arr)), strict=True))
         for w, (s0, _) in enumerate(windows):
-            tx = None if tx_ids is None else int(tx_ids[w % len(tx_ids)])
+            k = first_window + w
+            tx = None if tx_ids is None else int(tx_ids[k % len(tx_ids)])
             i = found.get(w)
             if i is None:
-                rows.append(ToF(w, tx, ch, math.nan, math.nan, math.nan, math.nan))
+                rows.append(ToF(k, tx, ch, math.nan, math.nan, math.nan, math.nan))
                 continue
             t = (arr.onset[i] - s0) / fs
             d = scale * c * (t - offset_s)
             sig = scale * c * arr.sigma[i] / fs
-            rows.append(ToF(w, tx, ch, float(d), float(sig), float(arr.snr_db[i]), float(t)))
+            rows.append(ToF(k, tx, ch, float(d), float(sig), float(arr.snr_db[i]), float(t)))
     rows.sort(key=lambda r: (r.window, r.channel))
     return rows
+
+
+def _windows(
+    n_samples: int,
+    *,
+    fs: float,
+    period_s: float | None,
+    windows: np.ndarray | None,
+    first_window: int,
+) -> np.ndarray:
+    """The windows to range: ``window_starts`` of ``period_s``, or checked explicit ones."""
+    V.positive_int("first_window", first_window, minimum=0)
+    if windows is None:
+        return window_starts(n_samples, fs=fs, period_s=period_s)
+    if period_s is not None:
+        raise InvalidParameterError("give period_s or windows, not both")
+    w = np.asarray(windows)
+    if (
+        w.ndim != 2
+        or w.shape[1] != 2
+        or len(w) == 0
+        or not np.issubdtype(w.dtype, np.integer)
+        or np.any(w[:, 0] < 0)
+        or np.any(w[:, 1] > n_samples)
+        or np.any(w[:, 1] - w[:, 0] < 2)
+    ):
+        raise InvalidParameterError(
+            f"windows must be integer [start, stop) rows of >= 2 samples within the "
+            f"{n_samples} samples, got shape {w.shape}"
+        )
+    return w.astype(np.int64)
 
 
 def _speed(temp_c: float, speed_m_s: float | None) -> float:
@@ -225,6 +263,8 @@ def range_oneway(
     k_detect: float = DEFAULT_K_DETECT,
     rel_threshold: float = DEFAULT_REL_THRESHOLD,
     block: int = DEFAULT_BLOCK,
+    windows: np.ndarray | None = None,
+    first_window: int = 0,
 ) -> list[ToF]:
     """One-way (RF-synchronised) ranges from a recording whose sample 0 is the trigger.
 
@@ -254,6 +294,14 @@ def range_oneway(
         Detection thresholds (:func:`rangekit.detect.matched.first_path`).
     block : int
         Overlap-save FFT size.
+    windows : ndarray of int, shape (n, 2), optional
+        Explicit ``[start, stop)`` sample ranges of the windows, instead of ``period_s``
+        (each window's time origin is its start). Used to range a long recording a block
+        at a time (:mod:`rangekit.ranging.series`): ``x`` then holds the block with the
+        matched filter's reach of context on both sides.
+    first_window : int
+        Number of the first window (window ``k`` of ``windows`` is ``first_window + k``,
+        also for ``tx_ids``).
 
     Returns
     -------
@@ -274,7 +322,9 @@ def range_oneway(
         )
     if tx_ids is not None and len(tx_ids) == 0:
         raise InvalidParameterError("tx_ids must not be empty")
-    windows = window_starts(x.shape[1], fs=fs, period_s=period_s)
+    windows = _windows(
+        x.shape[1], fs=fs, period_s=period_s, windows=windows, first_window=first_window
+    )
     template = coded_template(burst, fs=fs, tx=tx, rx=rx)
     return _ranges(
         x,
@@ -289,6 +339,7 @@ def range_oneway(
         tx_ids=tx_ids,
         thresholds={"k_noise": k_noise, "k_detect": k_detect, "rel_threshold": rel_threshold},
         block=block,
+        first_window=first_window,
     )
 
 
@@ -307,14 +358,16 @@ def range_echo(
     k_detect: float = DEFAULT_K_DETECT,
     rel_threshold: float = DEFAULT_REL_THRESHOLD,
     block: int = DEFAULT_BLOCK,
+    windows: np.ndarray | None = None,
+    first_window: int = 0,
 ) -> list[ToF]:
     """Pulse-echo ranges (SRF02 style) from a recording whose sample 0 is the ping.
 
     The template is the ping through the transducer twice (it sends and receives). Echoes
     earlier than ``2 min_range_m / c`` fall in the ring-down and are not searched; nothing
     before ``2 max_range_m / c`` means out of range (distance NaN, ``None`` in JSON).
-    ``period_s`` splits a log of many ranging cycles (0.07 s for the SRF02). Other
-    parameters as :func:`range_oneway`.
+    ``period_s`` splits a log of many ranging cycles (0.07 s for the SRF02), or
+    ``windows`` gives them explicitly. Other parameters as :func:`range_oneway`.
     """
     fs = V.sample_rate(fs)
     burst = srf02_ping() if burst is None else burst
@@ -327,7 +380,9 @@ def range_echo(
         raise InvalidParameterError(
             f"max_range_m={max_range_m!r} must exceed min_range_m={min_range_m!r}"
         )
-    windows = window_starts(x.shape[1], fs=fs, period_s=period_s)
+    windows = _windows(
+        x.shape[1], fs=fs, period_s=period_s, windows=windows, first_window=first_window
+    )
     if (windows[0, 1] - windows[0, 0]) / fs < 2.0 * min_range_m / c:
         raise IncompatibleInputError(
             f"recording of {x.shape[1]} samples is shorter than the ring-down blanking"
@@ -346,6 +401,7 @@ def range_echo(
         tx_ids=None,
         thresholds={"k_noise": k_noise, "k_detect": k_detect, "rel_threshold": rel_threshold},
         block=block,
+        first_window=first_window,
     )
     # Paths found at the very edges of the search are the blanking's or timeout's edge.
     out = []
@@ -358,6 +414,27 @@ def range_echo(
 
 #: Ranging schemes of :func:`range_ultrasonic_files`.
 ULTRASONIC_SCHEMES = ("oneway", "echo")
+
+
+def _file_burst(
+    path, n_channels: int, fs: float, *, scheme: str, channels: int | None, burst
+) -> CodedBurst:
+    """Check a file's channel count and rate; the scheme's burst at the file's rate."""
+    if channels is not None and n_channels != channels:
+        raise IncompatibleInputError(
+            f"'{path}' has {n_channels} channel(s) but {channels} are expected "
+            f"({'one per receiver' if scheme == 'oneway' else 'one per sensor'})"
+        )
+    b = (CodedBurst() if scheme == "oneway" else srf02_ping()) if burst is None else burst
+    check_burst_fits(b, fs=fs, what=f"'{path}'")
+    return b.with_fs(fs)
+
+
+def _no_burst_message(path, scheme: str) -> str:
+    return (
+        f"'{path}': no burst found in any channel or window (is this a {scheme} recording "
+        "at the right --period and --latency?)"
+    )
 
 
 def range_ultrasonic_files(
@@ -405,19 +482,10 @@ def range_ultrasonic_files(
     rows: list[dict] = []
     for p in paths:
         x, fs = read_audio(p)
-        if channels is not None and x.shape[1] != channels:
-            raise IncompatibleInputError(
-                f"'{p}' has {x.shape[1]} channel(s) but {channels} are expected "
-                f"({'one per receiver' if scheme == 'oneway' else 'one per sensor'})"
-            )
-        b = (CodedBurst() if scheme == "oneway" else srf02_ping()) if burst is None else burst
-        check_burst_fits(b, fs=fs, what=f"'{p}'")
-        res = func(x.T, fs=fs, burst=b.with_fs(fs), **kw)
+        b = _file_burst(p, x.shape[1], fs, scheme=scheme, channels=channels, burst=burst)
+        res = func(x.T, fs=fs, burst=b, **kw)
         if scheme == "oneway" and not any(math.isfinite(r.distance_m) for r in res):
-            raise DetectionError(
-                f"'{p}': no burst found in any channel or window (is this a {scheme} recording "
-                "at the right --period and --latency?)"
-            )
+            raise DetectionError(_no_burst_message(p, scheme))
         for r in res:
             d = r.as_dict()
             if scheme == "echo":
@@ -445,3 +513,128 @@ def format_tof(rows: list[dict], fmt: str, *, scheme: str, meta: dict | None = N
     if fmt == "csv":
         rows = [{k: ("" if v is None else v) for k, v in r.items()} for r in rows]
     return format_rows(rows, fields, fmt, meta=meta, key="ranges")
+
+
+@dataclass(frozen=True)
+class MatchedTrace:
+    """The matched-filter output of one channel in one window, and the range taken from it.
+
+    Attributes
+    ----------
+    fs : float
+        Sample rate, Hz.
+    start : int
+        The window's first sample in the recording (its time origin).
+    envelope : ndarray
+        Envelope ``|c|`` of the analytic matched-filter output over the window: index ``k``
+        is lag ``k`` samples from ``start`` (what :func:`rangekit.detect.matched.detect_matched`
+        searches).
+    noise : float
+        Rayleigh scale of the envelope's noise in the window
+        (:func:`rangekit.detect.matched.noise_level`), the unit of the detection thresholds.
+    search_s : tuple of float
+        Arrival times the search considers, s from the window start (``[lo, hi)``; one-way:
+        latency plus ``min_range_m / c`` to ``max_range_m / c``; echo: ``2 min_range_m / c``
+        to ``2 max_range_m / c``).
+    tof : ToF
+        The range of this channel and window, as :func:`range_oneway` or :func:`range_echo`
+        returns it (``arrival_s`` NaN when nothing was detected).
+    """
+
+    fs: float
+    start: int
+    envelope: np.ndarray
+    noise: float
+    search_s: tuple[float, float]
+    tof: ToF
+
+    @property
+    def peak_lag(self) -> float:
+        """Lag of the chosen first path in samples from ``start`` (NaN if none)."""
+        return self.tof.arrival_s * self.fs
+
+
+def matched_trace(
+    x: np.ndarray, *, fs: float, scheme: str, channel: int = 0, window: int = 0, **kw
+) -> MatchedTrace:
+    """The matched-filter envelope of one channel and window, with the first path ranging chose.
+
+    The range comes from :func:`range_oneway` or :func:`range_echo` run on that channel
+    (so it is the one ``rangekit range`` reports); the envelope is the same analytic
+    matched filter (:class:`rangekit.detect.matched.MatchedFilter`, template from
+    :func:`rangekit.detect.matched.coded_template` with the scheme's transducers) over the
+    whole channel, cut to the window.
+
+    Parameters
+    ----------
+    x : ndarray, shape (channels, samples) or (samples,)
+        The recording, as for :func:`range_oneway`.
+    fs : float
+        Sample rate in Hz.
+    scheme : {"oneway", "echo"}
+        Which ranging function (and defaults) to use.
+    channel, window : int
+        The receiver (sensor) and the activation window (ranging cycle), from 0.
+    **kw
+        Keyword arguments of the scheme's function (``burst``, ``period_s``, ...).
+
+    Returns
+    -------
+    MatchedTrace
+
+    Raises
+    ------
+    IncompatibleInputError
+        ``channel`` or ``window`` does not exist in the recording.
+
+    Examples
+    --------
+    >>> from rangekit.detect.matched import coded_template
+    >>> fs = 192000.0
+    >>> h = coded_template(fs=fs)
+    >>> x = np.zeros((1, 20000))
+    >>> x[0, 560 : 560 + len(h)] = h
+    >>> tr = matched_trace(x, fs=fs, scheme="oneway", tx=None, rx=None, speed_m_s=343.0)
+    >>> round(tr.peak_lag, 3), int(np.argmax(tr.envelope))
+    (560.0, 560)
+    """
+    import inspect
+    from dataclasses import replace
+
+    from rangekit.detect.matched import MatchedFilter, noise_level
+
+    if scheme not in ULTRASONIC_SCHEMES:
+        raise InvalidParameterError(
+            f"scheme={scheme!r} must be one of {', '.join(ULTRASONIC_SCHEMES)}"
+        )
+    x = _as_channels(x)
+    n_ch = x.shape[0]
+    if not 0 <= channel < n_ch:
+        raise IncompatibleInputError(
+            f"channel {channel} does not exist: the recording has {n_ch} channel(s) (0..{n_ch - 1})"
+        )
+    func = range_oneway if scheme == "oneway" else range_echo
+    rows = func(x[channel : channel + 1], fs=fs, **kw)  # checks every parameter
+    if not 0 <= window < len(rows):
+        raise IncompatibleInputError(
+            f"window {window} does not exist: the recording holds {len(rows)} window(s) "
+            f"(0..{len(rows) - 1})"
+        )
+    tof = replace(rows[window], channel=channel)
+    p = {k: v.default for k, v in inspect.signature(func).parameters.items()} | kw
+    if scheme == "oneway":
+        burst = CodedBurst() if p["burst"] is None else p["burst"]
+        tx, rx = p["tx"], p["rx"]
+    else:
+        burst = srf02_ping() if p["burst"] is None else p["burst"]
+        tx = rx = p["transducer"]
+    template = coded_template(burst, fs=fs, tx=tx, rx=rx)
+    s0, s1 = (int(v) for v in window_starts(x.shape[1], fs=fs, period_s=p["period_s"])[window])
+    env = np.abs(MatchedFilter(template, block=p["block"]).correlate(x[channel]))[s0:s1]
+    c = _speed(p["temp_c"], p["speed_m_s"])
+    if scheme == "oneway":
+        lat = p["latency_s"]
+        search = (lat + p["min_range_m"] / c, lat + p["max_range_m"] / c)
+    else:
+        search = (2.0 * p["min_range_m"] / c, 2.0 * p["max_range_m"] / c)
+    return MatchedTrace(float(fs), s0, env, noise_level(env), search, tof)
