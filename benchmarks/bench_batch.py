@@ -114,8 +114,13 @@ def main(argv: list[str] | None = None) -> int:
         for jobs, t in best.items():
             print(f"{jobs:>5} {t:8.2f} {n / t:11.1f} {best[1] / t:9.2f}x")
         print(f"results identical across runs: {same}")
+        from _report import row
+
+        for jobs, t in best.items():
+            row("batch", f"--jobs {jobs}, {n} sessions", n / t, "sessions/s")
         if 2 in best:
             s = best[1] / best[2]
+            row("batch", "--jobs 2 speed-up over --jobs 1", s, "x", note=f"target >= {TARGET}x")
             verdict = "met" if s >= TARGET else "MISSED"
             print(f"target: --jobs 2 >= {TARGET}x --jobs 1: {s:.2f}x ({verdict})")
         return 0 if same else 1

@@ -53,6 +53,7 @@ from pathlib import Path
 
 import _one_core  # noqa: F401  (one thread, repo on sys.path; before numpy)
 import numpy as np
+from _report import row
 from _stft_peer import stft_band_energy
 
 import rangekit.detect.changepoint as cp
@@ -312,6 +313,7 @@ def main() -> int:
         t_xc = t60b * x.size / n60
         rows.append(("detect_xcorr (60 s, scaled x10)", t_xc, "run on 60 s, linear scaling"))
         xc_truth = truth[truth < n60 - beep.duration_samples]
+    xc_name, _, xc_note = rows[-1]
 
     t_st, st_arr, n_cand = math.inf, None, 0
     st_times: dict[str, float] = {}
@@ -353,6 +355,19 @@ def main() -> int:
     ok &= check("detect_changepoint float32", arr32.onset, truth)
     ok &= check("instrumented call", st_arr.onset, truth)
     check("detect_xcorr (baseline)", arr_xc.onset, xc_truth)
+
+    # Headline rows for benchmarks/run.py (ratio = t_peer / t: > 1 = faster than the peer).
+    size = f"{duration_s:.0f} s of 44.1 kHz audio, {len(truth)} beeps, best of {repeats}"
+    headline = [
+        ("detect_changepoint float64 (whole)", t_cp,
+         f"target >= {TARGET_X:.0f}x: {verdict} ({x_rt / TARGET_X:.2f} of it)"),
+        ("detect_changepoint float32 (whole)", t_cp32, "converted to float64 inside"),
+        (xc_name, t_xc, xc_note),
+    ]  # fmt: skip
+    for name, t, note in headline:
+        row("detect", name, duration_s / t, "x-realtime",
+            peer="scipy ShortTimeFFT + bin 46 (mfft=128)", peer_value=duration_s / t_peer,
+            note=f"{size}; {note}")  # fmt: skip
 
     if args.profile or x_rt < 0.5 * TARGET_X:
         profile(x, beep, t_cp, duration_s, n_cand)

@@ -37,6 +37,7 @@ import time
 
 import _one_core  # noqa: F401  (one BLAS thread, repository importable)
 import numpy as np
+from _report import row
 
 from rangekit.experiments.kim2013 import PAPER_TABLE_III_MS
 from rangekit.localize import _duhl_kernels as K
@@ -188,6 +189,23 @@ def main() -> int:
         )
     worst = min(r["paper"] / r["duhl_cycle"] for r in rows)
     print(f"\nworst DUHL ratio vs Kim & Kim Table III: {worst:.1f}x (acceptance: >= 20x)")
+
+    # Headline rows for benchmarks/run.py (ratio = t_peer / t: > 1 = faster than the peer):
+    # the trajectory with the smallest ratio of each comparison.
+    size = f"{laps} lap(s), best of {args.repeats}"
+    w = min(rows, key=lambda r: r["paper"] / r["duhl_cycle"])
+    span = ", ".join(f"{r['duhl_cycle']:.1f}" for r in rows)
+    row("duhl", f"track_duhl per cycle (one Tx firing), trajectory {w['traj']} (worst)",
+        w["duhl_cycle"], "us/cycle", peer="Kim & Kim 2013 Table III (reported)",
+        peer_value=w["paper"],
+        note=f"{size}; trajectories 1-4: {span} us; acceptance >= 20x: "
+        f"{'met' if worst >= 20 else 'NOT met'}")  # fmt: skip
+    w = min(rows, key=lambda r: r["peer_cycle"] / r["ranges_cycle"] if EKF is not None else 0.0)
+    row("duhl", f"track_duhl ranges variant per cycle, trajectory {w['traj']} (worst)",
+        w["ranges_cycle"], "us/cycle", peer="FilterPy ExtendedKalmanFilter, same model",
+        peer_value=w["peer_cycle"] if EKF is not None else None,
+        note=f"{size}; FilterPy on the first {N_PEER} odometry rows"
+        + ("" if EKF is not None else "; FilterPy not installed"))  # fmt: skip
     return status
 
 

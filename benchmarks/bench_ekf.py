@@ -51,6 +51,7 @@ import time
 
 import _one_core  # noqa: F401  (one thread, repo on sys.path; before numpy)
 import numpy as np
+from _report import row
 
 from rangekit.io.tracklog import FixRows, MeasurementLog, RangeRows, RobotRows
 from rangekit.localize._kernels import run_range_ekf
@@ -360,6 +361,19 @@ def main() -> int:
         f"agree: {'yes' if agree else 'no'} (max |dx| = {dx:.2e} vs {ref_name}, first "
         f"{N_CHECK} epochs, no gate, tolerance {TOL:g}; max |dP| = {dP:.2e})"
     )
+    # Headline rows for benchmarks/run.py (ratio = t_peer / t: > 1 = faster than the peer).
+    step = "one predict+update, 8 states, 4 rows/epoch"
+    fp_note = "" if us_fp else "; FilterPy not installed"
+    row("ekf", f"run_range_ekf (compiled, 1 hypothesis), {n_ep} epochs", us_k, "us/step",
+        peer=f"FilterPy ExtendedKalmanFilter, same model, {n_peer} epochs", peer_value=us_fp,
+        note=f"{step}; best of {args.repeats}{fp_note}")  # fmt: skip
+    row("ekf", f"run_range_ekf (compiled, 1 hypothesis), {n_ep} epochs", us_k, "us/step",
+        peer="Kim & Kim 2013 C++ EKF (reported)", peer_value=KIM_US,
+        note=f"acceptance >= {ACCEPT_X:.0f}x: {'met' if KIM_US / us_k >= ACCEPT_X else 'NOT met'}; "
+        f"design <= {DESIGN_US:g} us: {'met' if us_k <= DESIGN_US else 'NOT met'}")  # fmt: skip
+    row("ekf", f"track_ranges (bank of up to 8 hypotheses), {n_full} epochs", us_f, "us/step",
+        peer=f"FilterPy ExtendedKalmanFilter (1 filter), {n_peer} epochs", peer_value=us_fp,
+        note=f"public tracker, per epoch; best of {rep_slow}{fp_note}")  # fmt: skip
     if not agree:
         print("\nFAIL: the compiled loop disagrees with the reference", file=sys.stderr)
         return 1

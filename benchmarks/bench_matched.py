@@ -66,6 +66,7 @@ import _one_core  # noqa: F401  (one thread, repo on sys.path; before numpy)
 import numpy as np
 import scipy.signal as ss
 import soundfile as sf
+from _report import row
 
 from rangekit.detect.matched import DEFAULT_BLOCK, MatchedFilter, _analytic_fir, coded_template
 from rangekit.signals.barker import CodedBurst
@@ -294,6 +295,7 @@ def main() -> int:
 
     rows: list[Row] = []
     sweeps: dict[str, dict[int, Row]] = {}
+    headline: dict[str, tuple[Row, list[Row]]] = {}
     n60 = int(60.0 * FS)
     for label, h in templates.items():
         g, _ = _analytic_fir(h)
@@ -349,6 +351,7 @@ def main() -> int:
         for p in peers:
             p.note = f"{p.note}; rk/peer = {p.t / rk.t:.2f}"
         rows += [rk, env, *peers]
+        headline[label] = (rk, peers)
         rows += sweep.values()
         print(f"timed [{label}]: {time.perf_counter() - t0:.0f} s wall")
 
@@ -421,6 +424,38 @@ def main() -> int:
         f"  check stream: streamed max envelope vs whole-array ({wav_s[0]:.0f} s WAV): "
         f"rel. diff {d_stream:.1e} -> {'OK' if good else 'FAIL'}"
     )
+    # Headline rows for benchmarks/run.py (ratio = t_peer / t: > 1 = faster than the peer).
+    size = f"{duration_s:.0f} s at 192 kHz, best of {repeats}"
+    for label, (rk, peers) in headline.items():
+        corr, oa_real, oa_an = peers
+        for p, note in (
+            (corr, "peer computes the real part only"),
+            (oa_an, f"same complex output; vs real-only oaconvolve {oa_real.t / rk.t:.2f}x"),
+        ):
+            row(
+                "matched",
+                f"MatchedFilter.correlate [{label}]",
+                duration_s / rk.t,
+                "x-realtime",
+                peer=p.name.strip().removeprefix("peer "),
+                peer_value=duration_s / p.t,
+                note=f"{size}; {note}; peak RSS growth {gb(rk.mem)} vs {gb(p.mem)}",
+            )
+    row(
+        "matched",
+        f"MatchedFilter.stream, {wav_s[1]:.0f} s 16-bit WAV",
+        wav_s[1] / st[1].t,
+        "x-realtime",
+        note=f"soundfile.blocks of 2^16; decoding alone {wav_s[1] / dec.t:.0f}x",
+    )
+    row(
+        "matched",
+        f"MatchedFilter.stream peak memory, {wav_s[1]:.0f} s WAV",
+        traced[1] / 1e6,
+        "MB",
+        note=f"tracemalloc peak; {gb(traced[0])} for {wav_s[0]:.0f} s (ratio {ratio:.2f})",
+    )
+
     x_rt = duration_s / rows[0].t
     print(
         f"\n  target: whole detection >= {TARGET_X:.0f}x realtime on one core; the matched "

@@ -1,0 +1,145 @@
+"""Headline numbers of a benchmark as machine-readable lines, for ``benchmarks/run.py``.
+
+A benchmark states each of its headline numbers once with :func:`row`, which prints one
+line ``@row {json}`` to stdout (and nothing else); ``run.py`` collects these lines from
+every benchmark's output and prints them as one summary table (``docs/performance.md``).
+A benchmark run on its own prints them among its own output; they are meant to be
+greppable (``grep '^@row '``).
+
+Ratio
+-----
+``ratio`` compares rangekit with a peer measured **in the same run**, and is above 1 when
+rangekit is faster (or smaller) than the peer, whatever the unit:
+
+* throughput units (higher is better: ``x-realtime``, ``x``, anything ending in ``/s``):
+  ``ratio = value / peer_value``, i.e. ``t_peer / t_rangekit`` for the same work;
+* time and memory units (lower is better: ``s``, ``ms``, ``us``, ``ns``, those followed by
+  ``/something`` such as ``us/step``, and ``B``, ``kB``, ``MB``, ``GB``):
+  ``ratio = peer_value / value``.
+
+The ratio is computed from ``peer_value`` unless given (e.g. from medians, or when the
+peer's number is in another unit); a unit outside these lists needs an explicit ratio.
+
+Run nothing here: this module is imported by the benchmarks (``from _report import row``;
+the benchmark's own folder is first on ``sys.path``).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import numbers
+import sys
+from typing import Any
+
+#: The marker that starts a row line; ``run.py`` parses lines that start with it.
+PREFIX = "@row "
+
+#: Units where a larger number is better (besides those ending in "/s").
+HIGHER_IS_BETTER = frozenset({"x-realtime", "x"})
+#: Units where a smaller number is better: times (also per something, "us/step") and sizes.
+LOWER_IS_BETTER = frozenset({"s", "ms", "us", "ns", "B", "kB", "MB", "GB"})
+
+#: The keys of a row, in order.
+FIELDS = ("bench", "metric", "value", "unit", "peer", "peer_value", "ratio", "note")
+
+
+def higher_is_better(unit: str) -> bool:
+    """Whether a larger ``value`` in ``unit`` means rangekit did better.
+
+    Raises
+    ------
+    ValueError
+        The unit is in neither list of the module docstring.
+    """
+    if unit in HIGHER_IS_BETTER or unit.endswith("/s"):
+        return True
+    if unit in LOWER_IS_BETTER or unit.split("/", 1)[0] in LOWER_IS_BETTER:
+        return False
+    raise ValueError(
+        f"unit={unit!r}: unknown whether higher or lower is better; pass ratio= explicitly"
+    )
+
+
+def _number(name: str, v: Any) -> float | None:
+    """A finite float, or None for a missing or non-finite number (JSON null)."""
+    if v is None:
+        return None
+    if isinstance(v, bool) or not isinstance(v, numbers.Real):
+        raise TypeError(f"{name}={v!r} must be a real number or None")
+    f = float(v)
+    return f if math.isfinite(f) else None
+
+
+def row(
+    bench: str,
+    metric: str,
+    value: float | None,
+    unit: str,
+    *,
+    peer: str | None = None,
+    peer_value: float | None = None,
+    ratio: float | None = None,
+    note: str = "",
+) -> dict[str, Any]:
+    """Print one headline number of a benchmark as a line ``@row {json}`` on stdout.
+
+    Parameters
+    ----------
+    bench : str
+        Short name of the benchmark (its file name without ``bench_`` and ``.py``, e.g.
+        ``"detect"``).
+    metric : str
+        What was measured, e.g. ``"detect_changepoint float64, 10 min"``.
+    value : float or None
+        The number; None or non-finite (not measured) is written as JSON null.
+    unit : str
+        Its unit, e.g. ``"x-realtime"``, ``"us/step"``, ``"s"``, ``"MB"``, ``"updates/s"``.
+    peer : str, optional
+        The peer it is compared with (measured in the same run, or "(reported)").
+    peer_value : float, optional
+        The peer's number in the same unit.
+    ratio : float, optional
+        rangekit relative to the peer, > 1 = rangekit faster / smaller (module
+        docstring). Default: computed from ``peer_value`` and the unit.
+    note : str
+        Anything the number needs to be read right (sizes, scaling, verdicts).
+
+    Returns
+    -------
+    dict
+        The row as printed (keys :data:`FIELDS`).
+
+    Raises
+    ------
+    ValueError
+        Empty ``bench``, ``metric`` or ``unit``; a text with a line break; a ratio to
+        compute for a unit of unknown direction.
+    TypeError
+        A number that is not a real number.
+    """
+    for name, text in (("bench", bench), ("metric", metric), ("unit", unit)):
+        if not isinstance(text, str) or not text.strip():
+            raise ValueError(f"{name}={text!r} must be a non-empty string")
+    texts = {"bench": bench, "metric": metric, "unit": unit, "peer": peer, "note": note}
+    for name, text in texts.items():
+        if text is not None and ("\n" in str(text) or "\r" in str(text)):
+            raise ValueError(f"{name}={text!r} must be one line")
+    v = _number("value", value)
+    pv = _number("peer_value", peer_value)
+    r = _number("ratio", ratio)
+    if r is None and ratio is None and v is not None and pv is not None and v > 0 and pv > 0:
+        r = v / pv if higher_is_better(unit) else pv / v
+    out = {
+        "bench": bench,
+        "metric": metric,
+        "value": v,
+        "unit": unit,
+        "peer": peer,
+        "peer_value": pv,
+        "ratio": r,
+        "note": note,
+    }
+    sys.stdout.write(PREFIX + json.dumps(out, allow_nan=False) + "\n")
+    sys.stdout.flush()
+    return out
