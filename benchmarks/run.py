@@ -27,7 +27,9 @@ ran at the same time.  A benchmark that resets its high-water mark to measure on
 (``bench_matched`` writes ``/proc/self/clear_refs``) also resets ``ru_maxrss``; so, on
 Linux, the process's ``VmHWM`` is also sampled every 50 ms while it runs and the column is
 the larger of the two (a peak that is reset less than 50 ms after it happened can still
-be missed).  Where ``os.wait4`` is missing (Windows) only the sampling is left.
+be missed).  Where ``os.wait4`` is missing (Windows) only the sampling is left.  A
+child's ``ru_maxrss`` may also include the parent's resident pages at fork time (before
+exec): run this script from a small process (a shell), not from a large one.
 
 Exit status: 0 if every benchmark exited 0, else 1.
 

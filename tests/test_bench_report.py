@@ -251,8 +251,16 @@ def test_run_bench_streams_collects_and_measures_each_child_alone(tmp_path, caps
     assert r_big.file == "bench_big.py" and r_big.name == "big"
     assert [r["ratio"] for r in r_big.rows] == [2.0]
     assert r_big.peak_rss_bytes >= 300e6
-    # the second child's own peak, not the maximum over all children so far
-    assert r_small.peak_rss_bytes < 200e6
+    # The second child's own peak, not the maximum over all children so far. On Linux a
+    # child's ru_maxrss also counts the parent's pages at fork time (before exec), so
+    # this is checkable only while this test process itself is small.
+    import resource
+
+    parent = run.maxrss_bytes(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss)
+    if parent < 150e6:
+        assert r_small.peak_rss_bytes < 200e6
+    else:
+        assert r_small.peak_rss_bytes < max(200e6, 1.1 * parent)
 
 
 _RESETS_ITS_PEAK = """\
