@@ -12,20 +12,38 @@ move passes through (Girard §3 used 2 m tiles; the cell here defaults to 1 m). 
 * :func:`ray_model_grid`: Girard's ray model (§3.2, eq. (3)) for many particles and
   sensors at once, the numbers of :func:`rangekit.sensors.srf02.model_range` with
   ``method="rays"`` (inf where that function gives NaN). When all particles share the
-  heading, a ray is cast from a cell only if some wall within its range is close enough
-  to perpendicular to send it back (exact; in axis-parallel plans about one ray in seven);
+  heading it answers from ray tables (:func:`build_ray_tables`, below) instead of casting;
 * :func:`merge_close`: step 5 of Girard §3.2, merging particles closer than tau (greedy,
-  heaviest first, spatial hash); :func:`merge_close_reference` is its O(n^2) oracle.
+  heaviest first, over a dense grid of tau cells, or a hash of them for a sparse cloud);
+  :func:`merge_close_reference` is its O(n^2) oracle.
 
 Exactness: each ray/segment and move/segment pair is evaluated with the expressions of
 :mod:`rangekit._raycast` in the same order, and ties between segments hit at the same
 distance go to the lower segment index, as in the brute-force loop; segments are
 registered in every cell their bounding box (padded by ``_PAD_M``) touches, and a ray
 stops only once its best hit lies inside the cells already visited. So the grid answers
-equal the brute-force answers bit for bit (tested).
+equal the brute-force answers bit for bit (tested). The one exception is degenerate: a ray
+or move collinear with a wall to rounding (``d x e`` at rounding level) that starts on the
+wall's line beyond its end; the brute force then divides rounding noise and may report a
+"hit" on a wall it does not reach, which the grid never looks at (seen for about one move
+in a thousand of those, never for the ray model's rays).
 
 Traversal is Amanatides & Woo's 3-D-DDA in 2-D: from the ray's entry into the grid box,
 step to the next cell boundary in x or y, whichever comes first.
+
+Ray tables (one heading for all particles, the filters' case). A ray of the model only
+counts if its first hit is a wall that eq. (3) accepts, and whether a wall is accepted
+depends on the ray's and the wall's directions only. So for each grid cell holding
+particles and each of the ``n_sensors x lambda`` ray directions, :func:`build_ray_tables`
+lists the accepted walls ("answer walls") that a ray started anywhere in the cell can meet
+within its range, and the other walls ("blockers") it can meet before the farthest
+answer wall; each entry carries a lower bound of its hit distance from the cell and the
+lists are sorted by it. A particle's ray then computes its nearest answer-wall hit ``ta``
+(usually none: nothing else to do) and tests the blockers: the ray's reading is ``ta``
+unless one of them is hit first. Hits use the expressions above and the same tie rule, so
+the readings are the casting answers bit for bit (tested). The particles are sorted by
+cell (counting sort) and a cell's particles are run through each of its entries together,
+in branch-free loops the compiler vectorises (no fast-math: the same IEEE operations).
 """
 
 from __future__ import annotations
@@ -37,8 +55,10 @@ import numpy as np
 from numba import njit
 
 __all__ = [
+    "RayTables",
     "SegmentGrid",
     "build_grid",
+    "build_ray_tables",
     "cast_rays_grid",
     "crosses_grid",
     "merge_close",
@@ -307,6 +327,30 @@ def cast_rays_grid(ox, oy, dx, dy, rmax, grid: SegmentGrid):
     )  # fmt: skip
 
 
+@njit(cache=True, inline="always")
+def _crosses_cell(ax, ay, dx, dy, dd, c, seg, cseg, start, items):  # pragma: no cover
+    """Whether the move ``a -> a + d`` meets a segment registered in cell ``c``."""
+    for q in range(start[c], start[c + 1]):
+        ex = cseg[q, 2]
+        ey = cseg[q, 3]
+        wx = cseg[q, 0] - ax
+        wy = cseg[q, 1] - ay
+        denom = dx * ey - dy * ex
+        if denom != 0.0:
+            t = (wx * ey - wy * ex) / denom
+            if t >= 0.0 and t <= 1.0:
+                u = (wx * dy - wy * dx) / denom
+                if u >= 0.0 and u <= 1.0:
+                    return True
+        elif wx * dy - wy * dx == 0.0:
+            k = items[q]
+            s0 = (wx * dx + wy * dy) / dd
+            s1 = ((seg[k, 2] - ax) * dx + (seg[k, 3] - ay) * dy) / dd
+            if min(s0, s1) <= 1.0 and max(s0, s1) >= 0.0:
+                return True
+    return False
+
+
 @njit(cache=True)
 def _crosses_one(
     ax, ay, bx, by, seg, cseg, x0, y0, h, nx, ny, start, items
@@ -317,44 +361,38 @@ def _crosses_one(
     dd = dx * dx + dy * dy
     if dd == 0.0:
         return False
-    t_in, t_out = _enter(ax, ay, dx, dy, 1.0, x0, y0, h, nx, ny)
-    if t_in > t_out:
-        return False
-    px = ax + t_in * dx
-    py = ay + t_in * dy
+    if x0 <= ax <= x0 + nx * h and y0 <= ay <= y0 + ny * h:  # usual: a is in the grid box
+        px = ax
+        py = ay
+    else:
+        t_in, t_out = _enter(ax, ay, dx, dy, 1.0, x0, y0, h, nx, ny)
+        if t_in > t_out:
+            return False
+        px = ax + t_in * dx
+        py = ay + t_in * dy
     ix = min(max(int(math.floor((px - x0) / h)), 0), nx - 1)
     iy = min(max(int(math.floor((py - y0) / h)), 0), ny - 1)
+    # Cell-boundary crossings only steer the traversal (segments are registered with a
+    # pad), so reciprocals are fine here, as in _cast_one.
     if dx > 0.0:
-        sx, tx, ddx = 1, (x0 + (ix + 1) * h - ax) / dx, h / dx
+        rx = 1.0 / dx
+        sx, tx, ddx = 1, (x0 + (ix + 1) * h - ax) * rx, h * rx
     elif dx < 0.0:
-        sx, tx, ddx = -1, (x0 + ix * h - ax) / dx, -h / dx
+        rx = 1.0 / dx
+        sx, tx, ddx = -1, (x0 + ix * h - ax) * rx, -h * rx
     else:
         sx, tx, ddx = 0, np.inf, np.inf
     if dy > 0.0:
-        sy, ty, ddy = 1, (y0 + (iy + 1) * h - ay) / dy, h / dy
+        ry = 1.0 / dy
+        sy, ty, ddy = 1, (y0 + (iy + 1) * h - ay) * ry, h * ry
     elif dy < 0.0:
-        sy, ty, ddy = -1, (y0 + iy * h - ay) / dy, -h / dy
+        ry = 1.0 / dy
+        sy, ty, ddy = -1, (y0 + iy * h - ay) * ry, -h * ry
     else:
         sy, ty, ddy = 0, np.inf, np.inf
     while True:
-        c = iy * nx + ix
-        for q in range(start[c], start[c + 1]):
-            ex = cseg[q, 2]
-            ey = cseg[q, 3]
-            wx = cseg[q, 0] - ax
-            wy = cseg[q, 1] - ay
-            denom = dx * ey - dy * ex
-            if denom != 0.0:
-                t = (wx * ey - wy * ex) / denom
-                u = (wx * dy - wy * dx) / denom
-                if t >= 0.0 and t <= 1.0 and u >= 0.0 and u <= 1.0:
-                    return True
-            elif wx * dy - wy * dx == 0.0:
-                k = items[q]
-                s0 = (wx * dx + wy * dy) / dd
-                s1 = ((seg[k, 2] - ax) * dx + (seg[k, 3] - ay) * dy) / dd
-                if min(s0, s1) <= 1.0 and max(s0, s1) >= 0.0:
-                    return True
+        if _crosses_cell(ax, ay, dx, dy, dd, iy * nx + ix, seg, cseg, start, items):
+            return True
         t_exit = min(tx, ty)
         if t_exit > 1.0:
             return False
@@ -370,16 +408,97 @@ def _crosses_one(
                 return False
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _crosses_kernel(
     ax, ay, bx, by, seg, cseg, x0, y0, h, nx, ny, start, items
 ):  # pragma: no cover - compiled
+    """Moves within one grid cell (``a``'s cell holds ``b``, so the whole move) are
+    sorted by cell and tested against the cell's segments together, in branch-free loops
+    the compiler vectorises (the expressions and comparisons of :func:`_crosses_cell`);
+    the others, and all of them when they are few for the grid, walk the grid
+    (:func:`_crosses_one`)."""
     n = ax.shape[0]
     out = np.zeros(n, dtype=np.bool_)
+    if _SPARSE_PER_CELL * n < nx * ny:  # few moves on a large grid: walk each one
+        for i in range(n):
+            out[i] = _crosses_one(
+                ax[i], ay[i], bx[i], by[i], seg, cseg, x0, y0, h, nx, ny, start, items
+            )
+        return out
+    n_c = nx * ny
+    cell = np.full(n, -1, dtype=np.int64)
+    pos = np.zeros(n_c + 1, dtype=np.int64)
+    x1 = x0 + nx * h
+    y1 = y0 + ny * h
     for i in range(n):
+        dx = bx[i] - ax[i]
+        dy = by[i] - ay[i]
+        if dx * dx + dy * dy == 0.0:
+            continue  # a zero-length move never crosses
+        if x0 <= ax[i] <= x1 and y0 <= ay[i] <= y1:
+            ix = min(max(int(math.floor((ax[i] - x0) / h)), 0), nx - 1)
+            iy = min(max(int(math.floor((ay[i] - y0) / h)), 0), ny - 1)
+            fx = (bx[i] - x0) / h
+            fy = (by[i] - y0) / h
+            if ix <= fx <= ix + 1 and iy <= fy <= iy + 1:  # b in a's (closed) cell
+                cell[i] = iy * nx + ix
+                pos[cell[i] + 1] += 1
+                continue
         out[i] = _crosses_one(
             ax[i], ay[i], bx[i], by[i], seg, cseg, x0, y0, h, nx, ny, start, items
         )
+    m_max = 0
+    for c in range(n_c):
+        m_max = max(m_max, pos[c + 1])
+        pos[c + 1] += pos[c]
+    idx = np.empty(pos[n_c], dtype=np.int64)
+    fill = pos[:-1].copy()
+    for i in range(n):
+        if cell[i] >= 0:
+            idx[fill[cell[i]]] = i
+            fill[cell[i]] += 1
+    qx = np.empty(m_max)
+    qy = np.empty(m_max)
+    qdx = np.empty(m_max)
+    qdy = np.empty(m_max)
+    qdd = np.empty(m_max)
+    res = np.empty(m_max, dtype=np.bool_)
+    for c in range(n_c):
+        m = pos[c + 1] - pos[c]
+        if m == 0 or start[c] == start[c + 1]:
+            continue
+        for p in range(m):
+            i = idx[pos[c] + p]
+            qx[p] = ax[i]
+            qy[p] = ay[i]
+            qdx[p] = bx[i] - ax[i]
+            qdy[p] = by[i] - ay[i]
+            qdd[p] = qdx[p] * qdx[p] + qdy[p] * qdy[p]
+            res[p] = False
+        for q in range(start[c], start[c + 1]):
+            ex = cseg[q, 2]
+            ey = cseg[q, 3]
+            sx = cseg[q, 0]
+            sy = cseg[q, 1]
+            k = items[q]
+            tx = seg[k, 2]
+            ty = seg[k, 3]
+            for p in range(m):
+                dx = qdx[p]
+                dy = qdy[p]
+                wx = sx - qx[p]
+                wy = sy - qy[p]
+                denom = dx * ey - dy * ex
+                t = (wx * ey - wy * ex) / denom
+                u = (wx * dy - wy * dx) / denom
+                proper = (denom != 0.0) & (t >= 0.0) & (t <= 1.0) & (u >= 0.0) & (u <= 1.0)
+                s0 = (wx * dx + wy * dy) / qdd[p]
+                s1 = ((tx - qx[p]) * dx + (ty - qy[p]) * dy) / qdd[p]
+                on_line = (denom == 0.0) & (wx * dy - wy * dx == 0.0)
+                overlap = on_line & (min(s0, s1) <= 1.0) & (max(s0, s1) >= 0.0)
+                res[p] = res[p] | proper | overlap
+        for p in range(m):
+            out[idx[pos[c] + p]] = res[p]
     return out
 
 
@@ -425,7 +544,6 @@ def _model_one(
     dxs,
     dys,
     order,
-    use,
     rmax_ray,
     thr,
     cthr,
@@ -448,8 +566,6 @@ def _model_one(
     best = np.inf
     for jj in range(order.shape[0]):
         j = order[jj]
-        if not use[j]:
-            continue
         lim = min(rmax_ray[j], best)
         t, k, q = _cast_one(x, y, dxs[j], dys[j], lim, cseg, x0, y0, h, nx, ny, start, items)
         if k < 0 or t < min_range or t >= best:
@@ -460,13 +576,12 @@ def _model_one(
 
 
 @njit(cache=True)
-def _ray_model_shared(
+def _ray_model_cast(
     px,
     py,
     dxs,
     dys,
     order,
-    cmask,
     rmax_ray,
     thr,
     cthr,
@@ -481,73 +596,18 @@ def _ray_model_shared(
     start,
     items,
 ):  # pragma: no cover - compiled
-    """All particles share the ray directions ``dxs, dys`` (n_sensors, lambda); a particle
-    in cell ``c`` casts ray ``j`` of sensor ``s`` only if ``cmask[c, s, j]`` (row
-    ``nx * ny``: particles outside the grid, all rays)."""
+    """All particles share the ray directions ``dxs, dys`` (n_sensors, lambda); every ray
+    is cast (the plain path: small clouds, and the reference of the tables)."""
     n = px.shape[0]
     n_s = dxs.shape[0]
     out = np.full((n, n_s), np.inf)
-    inv_h = 1.0 / h
     for i in range(n):
-        fx = (px[i] - x0) * inv_h
-        fy = (py[i] - y0) * inv_h
-        c = nx * ny
-        if 0.0 <= fx < nx and 0.0 <= fy < ny:
-            c = int(fy) * nx + int(fx)
         for s in range(n_s):
             out[i, s] = _model_one(
-                px[i], py[i], dxs[s], dys[s], order, cmask[c, s], rmax_ray, thr, cthr, sthr,
+                px[i], py[i], dxs[s], dys[s], order, rmax_ray, thr, cthr, sthr,
                 min_range, cseg, x0, y0, h, nx, ny, start, items,
             )  # fmt: skip
     return out
-
-
-@njit(cache=True)
-def _cell_ray_mask(dxs, dys, rmax_ray, sin_w, seg, x0, y0, h, nx, ny):  # pragma: no cover
-    """Per cell, which rays some wall could send back from a particle in that cell.
-
-    Ray ``(s, j)`` can only be accepted (eq. (3)) by a wall within ``sin_w`` of
-    perpendicular (``|d . e| <= sin_w |e|``) and at most ``rmax_ray[j]`` away; a cell whose
-    centre is farther than ``rmax_ray[j]`` + half its diagonal from every such wall never
-    needs the ray. Conservative (slack 1e-6), so the model's answer does not change.
-    """
-    n_s, lam = dxs.shape
-    m = seg.shape[0]
-    n_c = nx * ny
-    mask = np.zeros((n_c + 1, n_s, lam), dtype=np.bool_)
-    mask[n_c, :, :] = True
-    half = 0.5 * math.sqrt(2.0) * h
-    acc = np.empty(m, dtype=np.int64)
-    for s in range(n_s):
-        for j in range(lam):
-            na = 0
-            for k in range(m):
-                ex = seg[k, 2] - seg[k, 0]
-                ey = seg[k, 3] - seg[k, 1]
-                if abs(dxs[s, j] * ex + dys[s, j] * ey) <= (sin_w + 1e-6) * math.hypot(ex, ey):
-                    acc[na] = k
-                    na += 1
-            if na == 0:
-                continue
-            reach = rmax_ray[j] + half + 1e-6
-            reach2 = reach * reach
-            for c in range(n_c):
-                cx = x0 + (c % nx + 0.5) * h
-                cy = y0 + (c // nx + 0.5) * h
-                for q in range(na):
-                    k = acc[q]
-                    ax = seg[k, 0]
-                    ay = seg[k, 1]
-                    ex = seg[k, 2] - ax
-                    ey = seg[k, 3] - ay
-                    u = ((cx - ax) * ex + (cy - ay) * ey) / (ex * ex + ey * ey)
-                    u = min(max(u, 0.0), 1.0)
-                    ddx = ax + u * ex - cx
-                    ddy = ay + u * ey - cy
-                    if ddx * ddx + ddy * ddy <= reach2:
-                        mask[c, s, j] = True
-                        break
-    return mask
 
 
 @njit(cache=True)
@@ -579,7 +639,6 @@ def _ray_model_each(
     out = np.full((n, n_s), np.inf)
     dxs = np.empty(lam)
     dys = np.empty(lam)
-    use = np.ones(lam, dtype=np.bool_)
     for i in range(n):
         for s in range(n_s):
             for j in range(lam):
@@ -587,14 +646,455 @@ def _ray_model_each(
                 dxs[j] = math.cos(a)
                 dys[j] = math.sin(a)
             out[i, s] = _model_one(
-                px[i], py[i], dxs, dys, order, use, rmax_ray, thr, cthr, sthr, min_range, cseg,
+                px[i], py[i], dxs, dys, order, rmax_ray, thr, cthr, sthr, min_range, cseg,
                 x0, y0, h, nx, ny, start, items,
             )  # fmt: skip
     return out
 
 
+# ------------------------------------------------------- ray tables (one shared heading)
+
+#: Slack (m) of the lower bounds on hit distances kept in a ray table.
+_LB_SLACK_M = 1e-6
+#: Below this |sin| of the angle between a ray and a wall, a table entry's lower bound is
+#: -inf: the rounding of a near-parallel intersection is not bounded by the slack.
+_PARALLEL_SIN = 1e-9
+#: The model uses ray tables when the particles average at least this many per occupied
+#: grid cell (building one cell's tables costs about as much as casting the rays of two
+#: particles), and there are at least ``_TABLE_MIN_PARTICLES``.
+_TABLE_PER_CELL = 2.0
+_TABLE_MIN_PARTICLES = 64
+#: Kernels that sort points by grid cell (work proportional to the number of cells) are
+#: skipped for fewer than one point per this many cells.
+_SPARSE_PER_CELL = 16
+
+
+class RayTables(NamedTuple):
+    """Per occupied grid cell and ray, the walls that can answer the ray and those that can
+    block it, for one heading shared by all particles (:func:`build_ray_tables`).
+
+    Rays are numbered ``(s, jj)``: sensor ``s``, ``jj``-th ray in ``order`` (centre ray
+    first). Key ``(slot[c] * n_sensors + s) * lambda + jj`` of cell ``c``;
+    ``a_dat[a_start[key]:a_start[key + 1]]`` are the segments that the ray, started
+    anywhere in the cell, can meet within its range and would accept under eq. (3) ("answer
+    walls"), ``b_dat[...]`` the other segments it can meet before the farthest answer wall
+    ("blockers"). Rows of ``a_dat``/``b_dat``: a lower bound of the hit distance from the
+    cell, then ``x0, y0, ex, ey`` of the segment (the numbers of ``SegmentGrid.cseg``);
+    sorted by the bound within a key. ``a_k``/``b_k``: segment indices.
+    """
+
+    cell: np.ndarray  # int64 (n,): each particle's cell, -1: outside the grid
+    perm: np.ndarray  # int64 (n,): the particles ordered by cell
+    slot: np.ndarray  # int64 (nx * ny,): index among the occupied cells, -1: not occupied
+    dxs: np.ndarray  # float64 (n_sensors, lambda): ray directions, in ``order``
+    dys: np.ndarray
+    rmax: np.ndarray  # float64 (lambda,): ray ranges, in ``order``
+    a_start: np.ndarray  # int64 (n_keys + 1,)
+    a_dat: np.ndarray  # float64 (n_a, 5)
+    a_k: np.ndarray  # int64 (n_a,)
+    b_start: np.ndarray
+    b_dat: np.ndarray
+    b_k: np.ndarray
+
+
+@njit(cache=True, inline="always")
+def _sweep_meets_cell(ax, ay, bx, by, dx, dy, reach, half):  # pragma: no cover - compiled
+    """Whether a ray ``o + t d``, ``0 <= t <= reach``, from a point ``o`` of the square of
+    half side ``half`` centred on the origin, can meet segment ``a b`` (coordinates relative
+    to the square's centre).
+
+    Separating-axis test of the square against the parallelogram ``{p - t d}`` (``p`` on
+    the segment) along the normals of ``d`` and of the segment (the caller has done the x
+    and y axes by enumerating the cells of the bounding box).
+    """
+    r = half * (abs(dx) + abs(dy))
+    pa = ay * dx - ax * dy
+    pb = by * dx - bx * dy
+    if min(pa, pb) > r or max(pa, pb) < -r:
+        return False
+    ex = bx - ax
+    ey = by - ay
+    r = half * (abs(ex) + abs(ey))
+    pa = ay * ex - ax * ey
+    de = dy * ex - dx * ey
+    lo = pa - reach * max(de, 0.0)
+    hi = pa - reach * min(de, 0.0)
+    return lo <= r and hi >= -r
+
+
+@njit(cache=True, inline="always")
+def _push(keys, ks, vals, n, key, k, val):  # pragma: no cover - compiled
+    """Append ``(key, k, val)`` to growable buffers holding ``n`` entries."""
+    if n == keys.shape[0]:
+        size = 2 * n + 256
+        k2 = np.empty(size, np.int64)
+        s2 = np.empty(size, np.int64)
+        v2 = np.empty(size)
+        k2[:n] = keys[:n]
+        s2[:n] = ks[:n]
+        v2[:n] = vals[:n]
+        keys, ks, vals = k2, s2, v2
+    keys[n] = key
+    ks[n] = k
+    vals[n] = val
+    return keys, ks, vals
+
+
+@njit(cache=True)
+def _collect(
+    seg,
+    sbox,
+    acc,
+    answer,
+    dx,
+    dy,
+    reach,
+    kbase,
+    stride,
+    slot,
+    box,
+    obox,
+    reach_key,
+    x0,
+    y0,
+    h,
+    nx,
+    keys,
+    ks,
+    lbs,
+    n,
+):  # pragma: no cover - compiled
+    """Enter each segment ``k`` with ``acc[k] == answer`` under every occupied cell from
+    which a ray of direction ``d`` and length ``<= reach`` can meet it (key
+    ``slot * stride + kbase``); ``box``: the cell-index range ``ix0, ix1, iy0, iy1`` of
+    the occupied cells, ``obox`` its extent in m.
+
+    ``answer``: raise ``reach_key[key]`` to an upper bound of the hit distance from the
+    cell; otherwise (blockers) skip keys whose ``reach_key`` is below the lower bound.
+    """
+    half = 0.5 * h + _PAD_M
+    # largest o . d over the padded square, relative to its centre
+    o_ext = half * (abs(dx) + abs(dy))
+    pad = 2.0 * _PAD_M
+    for k in range(seg.shape[0]):
+        if acc[k] != answer or not _may_reach(sbox, k, dx, dy, reach, obox):
+            continue
+        ax = seg[k, 0]
+        ay = seg[k, 1]
+        bx = seg[k, 2]
+        by = seg[k, 3]
+        ex = bx - ax
+        ey = by - ay
+        xlo = min(min(ax, bx), min(ax, bx) - reach * dx) - pad
+        xhi = max(max(ax, bx), max(ax, bx) - reach * dx) + pad
+        ylo = min(min(ay, by), min(ay, by) - reach * dy) - pad
+        yhi = max(max(ay, by), max(ay, by) - reach * dy) + pad
+        i0 = max(int(math.floor((xlo - x0) / h)), box[0])
+        i1 = min(int(math.floor((xhi - x0) / h)), box[1])
+        j0 = max(int(math.floor((ylo - y0) / h)), box[2])
+        j1 = min(int(math.floor((yhi - y0) / h)), box[3])
+        parallel = abs(dx * ey - dy * ex) <= _PARALLEL_SIN * math.hypot(ex, ey)
+        for iy in range(j0, j1 + 1):
+            for ix in range(i0, i1 + 1):
+                sl = slot[iy * nx + ix]
+                if sl < 0:
+                    continue
+                key = sl * stride + kbase
+                cx = x0 + (ix + 0.5) * h
+                cy = y0 + (iy + 0.5) * h
+                pa = (ax - cx) * dx + (ay - cy) * dy
+                pb = (bx - cx) * dx + (by - cy) * dy
+                lb = -np.inf if parallel else min(pa, pb) - o_ext - _LB_SLACK_M
+                if not answer and (reach_key[key] == -np.inf or lb > min(reach_key[key], reach)):
+                    continue
+                if not _sweep_meets_cell(ax - cx, ay - cy, bx - cx, by - cy, dx, dy, reach, half):
+                    continue
+                if answer:
+                    reach_key[key] = max(reach_key[key], max(pa, pb) + o_ext + _LB_SLACK_M)
+                keys, ks, lbs = _push(keys, ks, lbs, n, key, k, lb)
+                n += 1
+    return keys, ks, lbs, n
+
+
+@njit(cache=True)
+def _pack(keys, ks, lbs, n, n_keys, seg):  # pragma: no cover - compiled
+    """CSR by key, entries sorted by their lower bound; rows ``lb, x0, y0, ex, ey``."""
+    start = np.zeros(n_keys + 1, np.int64)
+    for q in range(n):
+        start[keys[q] + 1] += 1
+    for key in range(n_keys):
+        start[key + 1] += start[key]
+    fill = start[:-1].copy()
+    dat = np.empty((n, 5))
+    kk = np.empty(n, np.int64)
+    for q in range(n):
+        p = fill[keys[q]]
+        fill[keys[q]] += 1
+        # insertion into the key's sorted run (runs are short)
+        while p > start[keys[q]] and dat[p - 1, 0] > lbs[q]:
+            dat[p] = dat[p - 1]
+            kk[p] = kk[p - 1]
+            p -= 1
+        k = ks[q]
+        dat[p, 0] = lbs[q]
+        dat[p, 1] = seg[k, 0]
+        dat[p, 2] = seg[k, 1]
+        dat[p, 3] = seg[k, 2] - seg[k, 0]
+        dat[p, 4] = seg[k, 3] - seg[k, 1]
+        kk[p] = k
+    return start, dat, kk
+
+
+@njit(cache=True, inline="always")
+def _may_reach(sbox, k, dx, dy, reach, obox):  # pragma: no cover - compiled
+    """Whether the bounding box of segment ``k`` swept back by ``reach d`` meets ``obox``."""
+    xlo = sbox[k, 0] - reach * max(dx, 0.0)
+    xhi = sbox[k, 1] - reach * min(dx, 0.0)
+    ylo = sbox[k, 2] - reach * max(dy, 0.0)
+    yhi = sbox[k, 3] - reach * min(dy, 0.0)
+    return xhi >= obox[0] and xlo <= obox[1] and yhi >= obox[2] and ylo <= obox[3]
+
+
+@njit(cache=True)
+def _ray_tables_kernel(
+    dxs, dys, rmax, thr, cthr, sthr, seg, x0, y0, h, nx, ny, slot, n_occ
+):  # pragma: no cover - compiled
+    n_s, lam = dxs.shape
+    m = seg.shape[0]
+    n_keys = n_occ * n_s * lam
+    stride = n_s * lam
+    reach_key = np.full(n_keys, -np.inf)
+    box = np.array([nx, -1, ny, -1])
+    for c in range(nx * ny):
+        if slot[c] >= 0:
+            box[0] = min(box[0], c % nx)
+            box[1] = max(box[1], c % nx)
+            box[2] = min(box[2], c // nx)
+            box[3] = max(box[3], c // nx)
+    pad = 4.0 * _PAD_M
+    obox = np.array(
+        [x0 + box[0] * h - pad, x0 + (box[1] + 1) * h + pad,
+         y0 + box[2] * h - pad, y0 + (box[3] + 1) * h + pad]
+    )  # fmt: skip
+    sbox = np.empty((m, 4))
+    for k in range(m):
+        sbox[k, 0] = min(seg[k, 0], seg[k, 2])
+        sbox[k, 1] = max(seg[k, 0], seg[k, 2])
+        sbox[k, 2] = min(seg[k, 1], seg[k, 3])
+        sbox[k, 3] = max(seg[k, 1], seg[k, 3])
+    acc = np.zeros((n_s, lam, m), dtype=np.bool_)
+    for s in range(n_s):
+        for jj in range(lam):
+            for k in range(m):
+                ex = seg[k, 2] - seg[k, 0]
+                ey = seg[k, 3] - seg[k, 1]
+                acc[s, jj, k] = _accept(dxs[s, jj], dys[s, jj], ex, ey, thr, cthr, sthr)
+    keys = np.empty(1024, np.int64)
+    ks = np.empty(1024, np.int64)
+    lbs = np.empty(1024)
+    n = 0  # answer walls, which also set reach_key
+    for s in range(n_s):
+        for jj in range(lam):
+            if np.any(acc[s, jj]):
+                keys, ks, lbs, n = _collect(
+                    seg, sbox, acc[s, jj], True, dxs[s, jj], dys[s, jj], rmax[jj], s * lam + jj,
+                    stride, slot, box, obox, reach_key, x0, y0, h, nx, keys, ks, lbs, n,
+                )  # fmt: skip
+    a_start, a_dat, a_k = _pack(keys, ks, lbs, n, n_keys, seg)
+    n = 0  # blockers
+    for s in range(n_s):
+        for jj in range(lam):
+            if np.any(acc[s, jj]):
+                keys, ks, lbs, n = _collect(
+                    seg, sbox, acc[s, jj], False, dxs[s, jj], dys[s, jj], rmax[jj], s * lam + jj,
+                    stride, slot, box, obox, reach_key, x0, y0, h, nx, keys, ks, lbs, n,
+                )  # fmt: skip
+    b_start, b_dat, b_k = _pack(keys, ks, lbs, n, n_keys, seg)
+    return a_start, a_dat, a_k, b_start, b_dat, b_k
+
+
+@njit(cache=True)
+def _cells_of(px, py, x0, y0, h, nx, ny):  # pragma: no cover - compiled
+    """Cell of each point (-1: outside the grid), the slot of each occupied cell among the
+    occupied ones (-1: empty), their number, and the points ordered by cell."""
+    n = px.shape[0]
+    n_c = nx * ny
+    inv_h = 1.0 / h
+    cell = np.empty(n, np.int64)
+    pos = np.zeros(n_c + 2, np.int64)  # bucket c + 1: cell c, bucket 0: outside
+    for i in range(n):
+        fx = (px[i] - x0) * inv_h
+        fy = (py[i] - y0) * inv_h
+        c = -1
+        if 0.0 <= fx < nx and 0.0 <= fy < ny:
+            c = int(fy) * nx + int(fx)
+        cell[i] = c
+        pos[c + 2] += 1
+    slot = np.full(n_c, -1, np.int64)
+    n_occ = 0
+    for c in range(n_c):
+        if pos[c + 2] > 0:
+            slot[c] = n_occ
+            n_occ += 1
+    for b in range(n_c + 1):
+        pos[b + 1] += pos[b]
+    perm = np.empty(n, np.int64)
+    for i in range(n):
+        b = cell[i] + 1
+        perm[pos[b]] = i
+        pos[b] += 1
+    return cell, slot, n_occ, perm
+
+
+def build_ray_tables(
+    px, py, heading, mounts, psi, rmax_ray, thr, grid: SegmentGrid, *, cells=None
+) -> RayTables:
+    """Ray tables of the cells occupied by the particles, for one shared heading.
+
+    Parameters are those of :func:`ray_model_grid` (``heading`` a float). A ray of
+    direction ``d`` (``heading + mount + psi_j``) and range ``rmax_j`` started in cell
+    ``c`` can only meet the segments whose parallelogram ``{p - t d: p on the segment,
+    0 <= t <= rmax_j}`` meets the (padded) cell; among them, the answer walls are those
+    eq. (3) accepts for ``d`` (the test of :func:`_accept`, which depends on the
+    directions only), and a blocker matters only if it can be met before the farthest
+    answer wall. Cost: one pass over the segments per ray direction, over the cells of
+    each one's parallelogram. ``cells``: the particles' ``_cells_of`` if known.
+    """
+    f = np.ascontiguousarray
+    px, py = f(px, np.float64), f(py, np.float64)
+    mounts, psi = f(mounts, np.float64).reshape(-1), f(psi, np.float64).reshape(-1)
+    rmax_ray = f(rmax_ray, np.float64).reshape(-1)
+    order = np.argsort(np.abs(psi), kind="stable")
+    ang = (float(heading) + mounts)[:, None] + psi[None, order]
+    dxs, dys = f(np.cos(ang)), f(np.sin(ang))
+    rmax = f(rmax_ray[order])
+    if cells is None:
+        cells = _cells_of(px, py, grid.x0, grid.y0, grid.cell_m, grid.nx, grid.ny)
+    cell, slot, n_occ, perm = cells
+    thr = float(thr)
+    parts = _ray_tables_kernel(
+        dxs, dys, rmax, thr, math.cos(thr), math.sin(thr), grid.seg, grid.x0, grid.y0,
+        grid.cell_m, grid.nx, grid.ny, slot, n_occ,
+    )  # fmt: skip
+    return RayTables(cell, perm, slot, dxs, dys, rmax, *parts)
+
+
+#: "No hit yet" for the segment index of a ray's nearest answer wall.
+_NO_WALL = np.int64(1) << np.int64(62)
+
+
+@njit(cache=True, error_model="numpy")
+def _ray_model_tables(
+    px, py, cell, perm, slot, dxs, dys, rmax, a_start, a_dat, a_k, b_start, b_dat, b_k, min_range
+):  # pragma: no cover - compiled
+    """The ray model from the tables (particles outside the grid: inf, see the caller).
+
+    The particles of one cell are taken together: each table entry is tested against all
+    of them in a branch-free loop that the compiler vectorises (the same expressions and
+    comparisons as :func:`_cast_one`, so the same numbers). Per sensor and ray (centre
+    first), each particle's nearest answer-wall hit ``(ta, a)`` within ``min(rmax, best)``
+    (ties: lower index) is its reading unless a blocker is hit before it (or at ``ta``
+    with a lower index); the reading replaces ``best`` if ``min_range <= ta < best``.
+    Entries whose lower bound exceeds every particle's limit are skipped.
+    """
+    n = px.shape[0]
+    n_s, lam = dxs.shape
+    out = np.full((n, n_s), np.inf)
+    m_max = 1
+    r0 = 0
+    while r0 < n:  # longest run of one cell in perm
+        r1 = r0 + 1
+        while r1 < n and cell[perm[r1]] == cell[perm[r0]]:
+            r1 += 1
+        m_max = max(m_max, r1 - r0)
+        r0 = r1
+    qx = np.empty(m_max)
+    qy = np.empty(m_max)
+    best = np.empty(m_max)
+    ta = np.empty(m_max)
+    aw = np.empty(m_max, dtype=np.int64)
+    ok = np.empty(m_max, dtype=np.bool_)
+    r0 = 0
+    while r0 < n:
+        c = cell[perm[r0]]
+        r1 = r0 + 1
+        while r1 < n and cell[perm[r1]] == c:
+            r1 += 1
+        m = r1 - r0
+        if c < 0:
+            r0 = r1
+            continue
+        for p in range(m):
+            qx[p] = px[perm[r0 + p]]
+            qy[p] = py[perm[r0 + p]]
+        for s in range(n_s):
+            best[:m] = np.inf
+            kb = (slot[c] * n_s + s) * lam
+            for jj in range(lam):
+                key = kb + jj
+                if a_start[key] == a_start[key + 1]:
+                    continue
+                dx = dxs[s, jj]
+                dy = dys[s, jj]
+                cut = -np.inf
+                for p in range(m):
+                    ta[p] = min(rmax[jj], best[p])
+                    aw[p] = _NO_WALL
+                    cut = max(cut, ta[p])
+                for q in range(a_start[key], a_start[key + 1]):
+                    if a_dat[q, 0] > cut:
+                        break
+                    ex = a_dat[q, 3]
+                    ey = a_dat[q, 4]
+                    denom = dx * ey - dy * ex
+                    if denom == 0.0:
+                        continue
+                    sx = a_dat[q, 1]
+                    sy = a_dat[q, 2]
+                    k = a_k[q]
+                    for p in range(m):
+                        wx = sx - qx[p]
+                        wy = sy - qy[p]
+                        t = (wx * ey - wy * ex) / denom
+                        u = (wx * dy - wy * dx) / denom
+                        tp = ta[p]
+                        hit = (t >= 0.0) & (u >= 0.0) & (u <= 1.0)
+                        take = hit & ((t < tp) | ((t == tp) & (k < aw[p])))
+                        ta[p] = t if take else tp
+                        aw[p] = k if take else aw[p]
+                cut = -np.inf
+                for p in range(m):
+                    ok[p] = (aw[p] != _NO_WALL) & (ta[p] >= min_range) & (ta[p] < best[p])
+                    cut = max(cut, ta[p] if ok[p] else -np.inf)
+                for q in range(b_start[key], b_start[key + 1]):
+                    if b_dat[q, 0] > cut:
+                        break
+                    ex = b_dat[q, 3]
+                    ey = b_dat[q, 4]
+                    denom = dx * ey - dy * ex
+                    if denom == 0.0:
+                        continue
+                    sx = b_dat[q, 1]
+                    sy = b_dat[q, 2]
+                    k = b_k[q]
+                    for p in range(m):
+                        wx = sx - qx[p]
+                        wy = sy - qy[p]
+                        t = (wx * ey - wy * ex) / denom
+                        u = (wx * dy - wy * dx) / denom
+                        tp = ta[p]
+                        hit = (t >= 0.0) & (u >= 0.0) & (u <= 1.0)
+                        ok[p] = ok[p] & ~(hit & ((t < tp) | ((t == tp) & (k < aw[p]))))
+                for p in range(m):
+                    best[p] = ta[p] if ok[p] else best[p]
+            for p in range(m):
+                out[perm[r0 + p], s] = best[p]
+        r0 = r1
+    return out
+
+
 def ray_model_grid(
-    px, py, heading, mounts, psi, rmax_ray, thr, min_range, grid: SegmentGrid, *, skip_rays=True
+    px, py, heading, mounts, psi, rmax_ray, thr, min_range, grid: SegmentGrid, *, tables=None
 ):
     """Girard 2011 §3.2 ray-model distance for each particle and sensor (inf: none).
 
@@ -603,8 +1103,8 @@ def ray_model_grid(
     px, py : numpy.ndarray
         float64 ``(n,)`` particle positions, m.
     heading : float or numpy.ndarray
-        Walking direction, rad: one for all particles (the fast path: the ray directions
-        are computed once) or one per particle ``(n,)``.
+        Walking direction, rad: one for all particles (the fast path: ray tables) or one
+        per particle ``(n,)`` (every ray cast).
     mounts : numpy.ndarray
         float64 ``(n_sensors,)`` sensor axes relative to the heading, rad.
     psi, rmax_ray : numpy.ndarray
@@ -613,11 +1113,11 @@ def ray_model_grid(
         Smallest accepted incidence angle, ``pi/2 - alpha / (2 lambda)`` (eq. (3)).
     min_range : float
         Hits nearer than this are dropped (ring-down).
-    skip_rays : bool
-        With a shared heading, do not cast, from a grid cell, the rays that no wall
-        within their range could send back under eq. (3) (a wall within
-        ``alpha / (2 lambda)`` of perpendicular to the ray, ``_cell_ray_mask``); same
-        result, fewer rays. Default True.
+    tables : bool or None
+        With a shared heading: answer from :func:`build_ray_tables` (True) or cast every
+        ray through the grid (False); None (default): tables when the particles are
+        dense enough (``_TABLE_PER_CELL`` per occupied cell, one per ``_SPARSE_PER_CELL``
+        grid cells). Same numbers either way.
 
     Returns
     -------
@@ -632,21 +1132,28 @@ def ray_model_grid(
     rmax_ray = f(rmax_ray, np.float64).reshape(-1)
     order = np.argsort(np.abs(psi), kind="stable").astype(np.int64)
     thr = float(thr)
-    args = (order, rmax_ray, thr, math.cos(thr), math.sin(thr), float(min_range), grid.cseg)
+    min_range = float(min_range)
+    args = (order, rmax_ray, thr, math.cos(thr), math.sin(thr), min_range, grid.cseg)
     geo = (grid.x0, grid.y0, grid.cell_m, grid.nx, grid.ny, grid.start, grid.items)
-    if np.ndim(heading) == 0:
-        ang = (float(heading) + mounts)[:, None] + psi[None, :]
-        dxs, dys = f(np.cos(ang)), f(np.sin(ang))
-        if skip_rays:
-            cmask = _cell_ray_mask(
-                dxs, dys, rmax_ray, math.cos(thr), grid.seg, grid.x0, grid.y0, grid.cell_m,
-                grid.nx, grid.ny,
-            )  # fmt: skip
-        else:
-            cmask = np.ones((grid.nx * grid.ny + 1, mounts.size, psi.size), dtype=np.bool_)
-        return _ray_model_shared(px, py, dxs, dys, order, cmask, *args[1:], *geo)
-    hd = f(heading, np.float64)
-    return _ray_model_each(px, py, hd, mounts, psi, *args, *geo)
+    if np.ndim(heading) != 0:
+        return _ray_model_each(px, py, f(heading, np.float64), mounts, psi, *args, *geo)
+    ang = (float(heading) + mounts)[:, None] + psi[None, :]
+    dxs, dys = f(np.cos(ang)), f(np.sin(ang))
+    cells = None
+    if tables is None:
+        n_cells = grid.nx * grid.ny
+        tables = px.size >= _TABLE_MIN_PARTICLES and _SPARSE_PER_CELL * px.size >= n_cells
+        if tables:
+            cells = _cells_of(px, py, grid.x0, grid.y0, grid.cell_m, grid.nx, grid.ny)
+            tables = px.size >= _TABLE_PER_CELL * cells[2]
+    if not tables:
+        return _ray_model_cast(px, py, dxs, dys, *args, *geo)
+    tb = build_ray_tables(px, py, heading, mounts, psi, rmax_ray, thr, grid, cells=cells)
+    out = _ray_model_tables(px, py, *tb, min_range)
+    outside = np.flatnonzero(tb.cell < 0)
+    if outside.size:  # particles outside the grid cast every ray
+        out[outside] = _ray_model_cast(px[outside], py[outside], dxs, dys, *args, *geo)
+    return out
 
 
 # ----------------------------------------------------------------------------- merge
@@ -709,6 +1216,68 @@ def _merge_kernel(x, y, w, order, tau):  # pragma: no cover - compiled
     return owner, wout
 
 
+#: The merge uses a dense grid of tau cells (not a hash) up to this many cells per particle.
+_MERGE_DENSE_PER_POINT = 4
+
+
+@njit(cache=True)
+def _merge_dense(x, y, w, order, tau, max_cells):  # pragma: no cover - compiled
+    """:func:`_merge_kernel` on a dense grid of tau cells over the points' extent (the
+    same cells, ``floor(x / tau)``, so the same answer); ``ok`` False, and nothing done,
+    when that grid would exceed ``max_cells``."""
+    n = x.shape[0]
+    cxs = np.empty(n, dtype=np.int64)
+    cys = np.empty(n, dtype=np.int64)
+    lo_x = hi_x = np.int64(math.floor(x[0] / tau))
+    lo_y = hi_y = np.int64(math.floor(y[0] / tau))
+    for i in range(n):
+        cx = np.int64(math.floor(x[i] / tau))
+        cy = np.int64(math.floor(y[i] / tau))
+        cxs[i] = cx
+        cys[i] = cy
+        lo_x = min(lo_x, cx)
+        hi_x = max(hi_x, cx)
+        lo_y = min(lo_y, cy)
+        hi_y = max(hi_y, cy)
+    nbx = hi_x - lo_x + 1
+    nby = hi_y - lo_y + 1
+    owner = np.full(n, -1, dtype=np.int64)
+    wout = np.zeros(n, dtype=np.float64)
+    if nbx > max_cells or nby > max_cells or nbx * nby > max_cells:
+        return owner, wout, False
+    head = np.full(nbx * nby, -1, dtype=np.int64)
+    nxt = np.full(n, -1, dtype=np.int64)
+    tau2 = tau * tau
+    for r in range(n):
+        i = order[r]
+        cx = cxs[i] - lo_x
+        cy = cys[i] - lo_y
+        best_j = -1
+        best_d = tau2
+        for yy in range(max(cy - 1, 0), min(cy + 2, nby)):
+            for xx in range(max(cx - 1, 0), min(cx + 2, nbx)):
+                j = head[yy * nbx + xx]
+                while j >= 0:
+                    ex = x[j] - x[i]
+                    ey = y[j] - y[i]
+                    d2 = ex * ex + ey * ey
+                    if d2 < best_d or (d2 == best_d and best_j >= 0 and j < best_j):
+                        if d2 < tau2:
+                            best_d = d2
+                            best_j = j
+                    j = nxt[j]
+        if best_j >= 0:
+            owner[i] = best_j
+            wout[best_j] += w[i]
+            continue
+        owner[i] = i
+        wout[i] = w[i]
+        c = cy * nbx + cx
+        nxt[i] = head[c]
+        head[c] = i
+    return owner, wout, True
+
+
 def _merge_order(w: np.ndarray) -> np.ndarray:
     """Heaviest first; equal weights in index order."""
     return np.argsort(-w, kind="stable").astype(np.int64)
@@ -732,7 +1301,13 @@ def merge_close(x, y, w, tau: float) -> tuple[np.ndarray, np.ndarray]:
     x, y, w = f(x, np.float64), f(y, np.float64), f(w, np.float64)
     if x.size == 0:
         return np.zeros(0, np.int64), np.zeros(0)
-    owner, wout = _merge_kernel(x, y, w, _merge_order(w), float(tau))
+    if not tau > 0.0:  # nothing is closer than 0
+        return np.arange(x.size, dtype=np.int64), w.copy()
+    order = _merge_order(w)
+    max_cells = _MERGE_DENSE_PER_POINT * x.size + 4096
+    owner, wout, ok = _merge_dense(x, y, w, order, float(tau), max_cells)
+    if not ok:  # a sparse cloud: hash the occupied cells
+        owner, wout = _merge_kernel(x, y, w, order, float(tau))
     keep = np.flatnonzero(owner == np.arange(x.size))
     return keep, wout[keep]
 

@@ -90,6 +90,33 @@ def test_grid_crossing_equals_numpy_reference(cell_m):
     assert 0.2 < got.mean() < 0.8
 
 
+@pytest.mark.parametrize("cell_m", [0.3, 1.0])
+def test_grid_crossing_short_moves_on_hard_points(cell_m):
+    """Moves within one cell (the fast path), along cell boundaries and along walls."""
+    plan = _random_plan(3)
+    seg = np.ascontiguousarray(plan.segments)
+    grid = K.build_grid(seg, cell_m)
+    rng = np.random.default_rng(13)
+    a = _hard_points(plan, grid, rng, 4000)
+    b = a + rng.normal(0.0, 0.1 * cell_m, a.shape)
+    n = len(a) // 4
+    b[:n, 0] = a[:n, 0]  # vertical moves (along cell boundaries for the boundary points)
+    b[n : 2 * n, 1] = a[n : 2 * n, 1]  # horizontal moves
+    w = rng.integers(0, seg.shape[0], n)  # moves along walls, from points on them
+    e = seg[w, 2:] - seg[w, :2]
+    a[2 * n : 3 * n] = seg[w, :2] + rng.uniform(0.0, 1.0, n)[:, None] * e
+    b[2 * n : 3 * n] = a[2 * n : 3 * n] + rng.uniform(-0.3, 0.3, n)[:, None] * e
+    ref = _raycast._crosses_reference(a[:, 0], a[:, 1], b[:, 0], b[:, 1], seg)
+    got = K.crosses_grid(a[:, 0], a[:, 1], b[:, 0], b[:, 1], grid)
+    np.testing.assert_array_equal(got, ref)
+    assert 0.05 < got.mean() < 0.9
+    sub = slice(0, len(a), 400)  # few moves for the grid: each one walks it
+    assert K._SPARSE_PER_CELL * a[sub].shape[0] < grid.nx * grid.ny
+    np.testing.assert_array_equal(
+        K.crosses_grid(a[sub, 0], a[sub, 1], b[sub, 0], b[sub, 1], grid), ref[sub]
+    )
+
+
 def test_ray_model_equals_srf02_model_range():
     plan = _random_plan()
     grid = K.build_grid(np.ascontiguousarray(plan.segments), 1.0)
@@ -109,15 +136,16 @@ def test_ray_model_equals_srf02_model_range():
         np.testing.assert_array_equal(np.where(np.isinf(got[:, j]), np.nan, got[:, j]), ref)
 
 
+def _axis_plan() -> FloorPlan:
+    rows = [((0, y), (12, y)) for y in (0, 3, 6, 9, 12)]
+    return FloorPlan.from_walls(rows + [((x, 0), (x, 12)) for x in (0, 3, 6, 9, 12)])
+
+
 @pytest.mark.parametrize("heading", [0.0, 0.3, np.pi / 2, 0.0685, -2.5])
 @pytest.mark.parametrize("plan_kind", ["axis", "random"])
 def test_ray_model_shared_heading_equals_srf02(heading, plan_kind):
-    """The fast path (one heading for all particles, rays no wall can accept skipped)."""
-    if plan_kind == "axis":
-        rows = [((0, y), (12, y)) for y in (0, 3, 6, 9, 12)]
-        plan = FloorPlan.from_walls(rows + [((x, 0), (x, 12)) for x in (0, 3, 6, 9, 12)])
-    else:
-        plan = _random_plan()
+    """The fast path (one heading for all particles: ray tables) and plain casting."""
+    plan = _axis_plan() if plan_kind == "axis" else _random_plan()
     grid = K.build_grid(np.ascontiguousarray(plan.segments), 1.0)
     s = SRF02()
     rng = np.random.default_rng(8)
@@ -126,13 +154,141 @@ def test_ray_model_shared_heading_equals_srf02(heading, plan_kind):
     thr = np.pi / 2 - s.incidence_window_rad - 1e-12
     psi = s.ray_offsets_rad
     args = (mounts, psi, s.max_range_at(psi), thr, s.min_range_m, grid)
-    fast = K.ray_model_grid(xy[:, 0], xy[:, 1], heading, *args)
-    slow = K.ray_model_grid(xy[:, 0], xy[:, 1], heading, *args, skip_rays=False)
+    fast = K.ray_model_grid(xy[:, 0], xy[:, 1], heading, *args, tables=True)
+    slow = K.ray_model_grid(xy[:, 0], xy[:, 1], heading, *args, tables=False)
     np.testing.assert_array_equal(fast, slow)
+    np.testing.assert_array_equal(K.ray_model_grid(xy[:, 0], xy[:, 1], heading, *args), fast)
     pose = np.column_stack([xy, np.full(len(xy), heading)])
     for j, m in enumerate(mounts):
         ref = model_range(plan, pose, s, mount_angle_rad=m, method="rays")
         np.testing.assert_array_equal(np.where(np.isinf(fast[:, j]), np.nan, fast[:, j]), ref)
+
+
+def _hard_points(plan: FloorPlan, grid: K.SegmentGrid, rng, n: int) -> np.ndarray:
+    """Points on cell boundaries and corners, on walls, on wall lines past their ends, at
+    and beyond the grid's edges, and random ones."""
+    seg = plan.segments
+    h = grid.cell_m
+    x1, y1 = grid.x0 + grid.nx * h, grid.y0 + grid.ny * h
+    k = n // 8
+    pts = [rng.uniform([grid.x0, grid.y0], [x1, y1], (2 * k, 2))]
+    ix = rng.integers(0, grid.nx + 1, k)
+    pts.append(np.column_stack([grid.x0 + ix * h, rng.uniform(grid.y0, y1, k)]))
+    iy = rng.integers(0, grid.ny + 1, k)
+    pts.append(np.column_stack([rng.uniform(grid.x0, x1, k), grid.y0 + iy * h]))
+    pts.append(np.column_stack([grid.x0 + ix * h, grid.y0 + iy * h]))  # cell corners
+    w = rng.integers(0, seg.shape[0], 2 * k)
+    u = rng.uniform(-0.5, 1.5, 2 * k)
+    u[: k // 2] = rng.integers(0, 2, k // 2)  # wall ends
+    pts.append(seg[w, :2] + u[:, None] * (seg[w, 2:] - seg[w, :2]))  # on wall lines
+    pts.append(rng.uniform([x1 - 0.5 * h, grid.y0], [x1 + 2 * h, y1], (k, 2)))  # grid edge
+    return np.concatenate(pts)
+
+
+def _plan_and_headings(kind: str):
+    """A plan, shared headings including ones whose rays run along walls, and those walls."""
+    psi = SRF02().ray_offsets_rad
+    if kind == "axis":
+        plan = _axis_plan()
+        # centre ray (mount +pi/2) along the x = const walls; ray 1 along them at -psi_1
+        return plan, [0.3, -2.5, 0.0, np.pi / 2, np.pi, float(-psi[1])], np.arange(5, 10)
+    plan = _random_plan(3)
+    seg = plan.segments
+    phi = np.arctan2(seg[:, 3] - seg[:, 1], seg[:, 2] - seg[:, 0])
+    walls = np.flatnonzero(np.abs(np.sin(2 * phi)) > 0.2)[:3]  # slanted walls
+    # heading + mount + psi_j == the wall's direction (mount +pi/2; rays j = 0, 5, 3)
+    along = [float(phi[i] - np.pi / 2 - psi[j]) for i, j in zip(walls, (0, 5, 3), strict=True)]
+    return plan, [0.3, -2.5, *along], walls
+
+
+@pytest.mark.parametrize("kind", ["axis", "random"])
+@pytest.mark.parametrize("cell_m", [0.3, 1.0, 2.0, 7.0])
+@pytest.mark.parametrize("n_rays", [1, 7])
+def test_ray_tables_equal_brute_force_on_hard_points(kind, cell_m, n_rays):
+    """Ray tables vs the brute-force caster (:func:`model_range`, which casts every ray
+    against every wall): one ray per sensor (its first hit exactly) and seven, particles
+    on cell boundaries, on walls and their lines, at the grid's edges, rays along walls."""
+    plan, headings, walls = _plan_and_headings(kind)
+    seg = plan.segments
+    grid = K.build_grid(np.ascontiguousarray(seg), cell_m)
+    s = SRF02(n_rays=n_rays)
+    rng = np.random.default_rng(11)
+    u = rng.uniform(-0.5, 1.5, (walls.size, 60))
+    u[:, :4] = [0.0, 1.0, 0.5, -0.2]
+    on = seg[walls, None, :2] + u[..., None] * (seg[walls, None, 2:] - seg[walls, None, :2])
+    xy = np.concatenate([_hard_points(plan, grid, rng, 1600), on.reshape(-1, 2)])
+    mounts = np.array([np.pi / 2, -np.pi / 2])
+    thr = np.pi / 2 - s.incidence_window_rad - 1e-12
+    psi = s.ray_offsets_rad
+    args = (mounts, psi, s.max_range_at(psi), thr, s.min_range_m, grid)
+    n_read = 0
+    for heading in headings:
+        got = K.ray_model_grid(xy[:, 0], xy[:, 1], heading, *args, tables=True)
+        pose = np.column_stack([xy, np.full(len(xy), heading)])
+        for j, m in enumerate(mounts):
+            ref = model_range(plan, pose, s, mount_angle_rad=m, method="rays")
+            np.testing.assert_array_equal(np.where(np.isinf(got[:, j]), np.nan, got[:, j]), ref)
+        n_read += np.isfinite(got).sum()
+    assert n_read > 0.03 * got.size * len(headings)  # the test sees readings
+
+
+def test_ray_tables_structure():
+    """Every wall a ray from a particle meets within its range is listed (answer walls if
+    eq. (3) accepts them, blockers if met before the nearest answer wall), under a lower
+    bound of its hit distance; lists are sorted by that bound."""
+    plan = _random_plan(4)
+    seg = np.ascontiguousarray(plan.segments)
+    grid = K.build_grid(seg, 1.0)
+    s = SRF02()
+    rng = np.random.default_rng(12)
+    xy = _hard_points(plan, grid, rng, 800)
+    xy = xy[(xy[:, 0] < grid.x0 + grid.nx) & (xy[:, 1] < grid.y0 + grid.ny)]  # in the grid
+    mounts = np.array([np.pi / 2, -np.pi / 2])
+    psi = s.ray_offsets_rad
+    thr = np.pi / 2 - s.incidence_window_rad - 1e-12
+    heading = 0.7
+    tb = K.build_ray_tables(
+        xy[:, 0], xy[:, 1], heading, mounts, psi, s.max_range_at(psi), thr, grid
+    )
+    lam = psi.size
+    for start, dat in ((tb.a_start, tb.a_dat), (tb.b_start, tb.b_dat)):
+        for key in range(start.size - 1):
+            assert np.all(np.diff(dat[start[key] : start[key + 1], 0]) >= 0)
+    # answer walls are the ones eq. (3) accepts for the key's direction; rows hold cseg
+    key_dir = np.arange(tb.a_start.size - 1) % (mounts.size * psi.size)
+    kd = np.repeat(key_dir, np.diff(tb.a_start))
+    dx, dy = tb.dxs.ravel()[kd], tb.dys.ravel()[kd]
+    e = tb.a_dat[:, 3:]
+    theta = np.arctan2(np.abs(dx * e[:, 1] - dy * e[:, 0]), np.abs(dx * e[:, 0] + dy * e[:, 1]))
+    assert np.all(theta >= thr)
+    np.testing.assert_array_equal(tb.a_dat[:, 1:3], seg[tb.a_k, :2])
+    np.testing.assert_array_equal(tb.a_dat[:, 3:], seg[tb.a_k, 2:] - seg[tb.a_k, :2])
+    ex, ey = seg[:, 2] - seg[:, 0], seg[:, 3] - seg[:, 1]
+    checked = [0, 0]
+    for i in range(len(xy)):
+        for si in range(mounts.size):
+            for jj in range(lam):
+                key = (tb.slot[tb.cell[i]] * mounts.size + si) * lam + jj
+                dx, dy = tb.dxs[si, jj], tb.dys[si, jj]
+                denom = dx * ey - dy * ex
+                wx, wy = seg[:, 0] - xy[i, 0], seg[:, 1] - xy[i, 1]
+                with np.errstate(divide="ignore", invalid="ignore"):
+                    t = (wx * ey - wy * ex) / denom
+                    u = (wx * dy - wy * dx) / denom
+                hit = (denom != 0) & (t >= 0) & (t <= tb.rmax[jj]) & (u >= 0) & (u <= 1)
+                theta = np.arctan2(np.abs(denom), np.abs(dx * ex + dy * ey))
+                acc = theta >= thr
+                ta = t[hit & acc].min() if np.any(hit & acc) else -np.inf
+                for ks, dat, need in (
+                    (tb.a_k, tb.a_dat, hit & acc),
+                    (tb.b_k, tb.b_dat, hit & ~acc & (t <= ta)),
+                ):
+                    lo, hi = (tb.a_start, tb.b_start)[ks is tb.b_k][key : key + 2]
+                    listed = dict(zip(ks[lo:hi].tolist(), dat[lo:hi, 0], strict=True))
+                    for k in np.flatnonzero(need):
+                        assert k in listed and listed[k] <= t[k]
+                        checked[ks is tb.b_k] += 1
+    assert min(checked) > 50  # both lists were exercised
 
 
 def test_useful_rays_in_an_axis_parallel_plan():
@@ -150,11 +306,19 @@ def test_empty_grid_has_no_hits():
     d, k, _ = K.cast_rays_grid([0.0], [0.0], [1.0], [0.0], [10.0], grid)
     assert np.isnan(d[0]) and k[0] == -1
     assert not K.crosses_grid([0.0], [0.0], [1.0], [1.0], grid)[0]
+    s = SRF02()
+    psi = s.ray_offsets_rad
+    args = ([np.pi / 2], psi, s.max_range_at(psi), 1.5, s.min_range_m, grid)
+    for tables in (True, False):
+        d = K.ray_model_grid([0.0, 0.5, 9.0], [0.0, -0.5, 0.0], 0.3, *args, tables=tables)
+        assert d.shape == (3, 1) and np.all(np.isinf(d))
 
 
-def test_merge_equals_reference_and_keeps_mass():
+@pytest.mark.parametrize("spread", [1.0, 1e5])  # dense grid of tau cells; hashed cells
+def test_merge_equals_reference_and_keeps_mass(spread):
     rng = np.random.default_rng(5)
     x, y = rng.uniform(0, 1, 2000), rng.uniform(0, 1, 2000)
+    x[::2] += spread  # two clusters, far apart for the large spread
     w = rng.integers(1, 4, 2000).astype(float)  # many ties
     keep, wk = K.merge_close(x, y, w, 0.05)
     keep_r, wk_r = K.merge_close_reference(x, y, w, 0.05)
@@ -170,6 +334,8 @@ def test_merge_keeps_the_heavier_and_adds_the_weight():
     keep, w = K.merge_close([0.0, 0.03, 1.0], [0.0, 0.0, 0.0], [1.0, 2.0, 5.0], 0.05)
     assert keep.tolist() == [1, 2] and w.tolist() == [3.0, 5.0]
     keep, w = K.merge_close([0.0, 0.06], [0.0, 0.0], [1.0, 2.0], 0.05)
+    assert keep.tolist() == [0, 1] and w.tolist() == [1.0, 2.0]
+    keep, w = K.merge_close([0.0, 0.0], [0.0, 0.0], [1.0, 2.0], 0.0)  # tau = 0: none closer
     assert keep.tolist() == [0, 1] and w.tolist() == [1.0, 2.0]
 
 
