@@ -321,3 +321,39 @@ def ultrasonic_kwargs(kw: dict, *, scheme: str, temp_c: float, speed: float | No
         )
         channels = kw.get("channels")
     return {"channels": channels, "burst": burst, **args}
+
+
+def self_distance_option(help: str):
+    """--self-distance M[,M...] (string; parse with :func:`float_list`)."""
+    return click.option(
+        "--self-distance",
+        "self_distance",
+        metavar="M[,M...]",
+        default="0",
+        show_default=True,
+        help=help,
+    )
+
+
+def speed_of_sound_option(help: str = "Speed of sound in m/s (overrides --temperature)."):
+    """--speed-of-sound MPS (``speed``), None when not given."""
+    return click.option(
+        "--speed-of-sound",
+        "speed",
+        type=FiniteRange(100.0, 2000.0),
+        default=None,
+        metavar="MPS",
+        help=help,
+    )
+
+
+def clock_ppm_option(help: str):
+    """--clock-ppm PPM: 1-sigma sample-clock tolerance per device."""
+    return click.option(
+        "--clock-ppm",
+        "clock_ppm",
+        type=FiniteRange(0.0, 1e4),
+        default=30.0,
+        show_default=True,
+        help=help,
+    )

@@ -6,12 +6,14 @@ import os
 
 import click
 from rangekit_cli._options import (
-    FiniteRange,
     beep_options,
+    clock_ppm_option,
     debug_option,
     detector_option,
     float_list,
     make_beep,
+    self_distance_option,
+    speed_of_sound_option,
     temperature_option,
     ultrasonic_kwargs,
     ultrasonic_options,
@@ -77,31 +79,12 @@ def _one_thread_per_worker() -> None:
     show_default=True,
     help="Scheme of sessions whose sidecar does not name one (see rangekit range).",
 )
-@click.option(
-    "--self-distance",
-    "self_distance",
-    metavar="M[,M...]",
-    default="0",
-    show_default=True,
-    help="beepbeep: speaker-to-microphone distance(s), m, where the sidecar gives none.",
+@self_distance_option(
+    "beepbeep: speaker-to-microphone distance(s), m, where the sidecar gives none."
 )
 @temperature_option
-@click.option(
-    "--speed-of-sound",
-    "speed",
-    type=FiniteRange(100.0, 2000.0),
-    default=None,
-    metavar="MPS",
-    help="Speed of sound in m/s (overrides --temperature and sidecar temperatures).",
-)
-@click.option(
-    "--clock-ppm",
-    "clock_ppm",
-    type=FiniteRange(0.0, 1e4),
-    default=30.0,
-    show_default=True,
-    help="beepbeep: 1-sigma sample-clock tolerance per device, ppm (widens sigma_m only).",
-)
+@speed_of_sound_option("Speed of sound in m/s (overrides --temperature and sidecar temperatures).")
+@clock_ppm_option("beepbeep: 1-sigma sample-clock tolerance per device, ppm (widens sigma_m only).")
 @detector_option
 @beep_options
 @ultrasonic_options

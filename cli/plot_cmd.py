@@ -6,11 +6,11 @@ import math
 
 import click
 from rangekit_cli._options import (
-    FiniteRange,
     beep_options,
     debug_option,
     detector_option,
     make_beep,
+    speed_of_sound_option,
     temperature_option,
     ultrasonic_kwargs,
     ultrasonic_options,
@@ -132,14 +132,7 @@ def spectrogram_cmd(recording, channel, detector, output, **beep_kw):
     help="Activation window (oneway) or ranging cycle (echo) to show, from 0 (see --period).",
 )
 @temperature_option
-@click.option(
-    "--speed-of-sound",
-    "speed",
-    type=FiniteRange(100.0, 2000.0),
-    default=None,
-    metavar="MPS",
-    help="Speed of sound in m/s (overrides --temperature).",
-)
+@speed_of_sound_option()
 @ultrasonic_options
 @_output
 @debug_option

@@ -6,6 +6,7 @@ import click
 from rangekit_cli._options import (
     FiniteRange,
     beep_options,
+    clock_ppm_option,
     debug_option,
     detector_option,
     emit,
@@ -13,6 +14,8 @@ from rangekit_cli._options import (
     format_option,
     make_beep,
     output_option,
+    self_distance_option,
+    speed_of_sound_option,
     temperature_option,
     ultrasonic_kwargs,
     ultrasonic_options,
@@ -29,31 +32,12 @@ from rangekit_cli._options import (
     help="beepbeep = two-way audible beeps, no clock sync; oneway = RF-synchronised "
     "ultrasonic beacons (sample 0 = trigger); echo = SRF02-style pulse-echo (sample 0 = ping).",
 )
-@click.option(
-    "--self-distance",
-    "self_distance",
-    metavar="M[,M...]",
-    default="0",
-    show_default=True,
-    help="Speaker-to-microphone distance in metres: one for all devices, or one per device.",
+@self_distance_option(
+    "Speaker-to-microphone distance in metres: one for all devices, or one per device."
 )
 @temperature_option
-@click.option(
-    "--speed-of-sound",
-    "speed",
-    type=FiniteRange(100.0, 2000.0),
-    default=None,
-    metavar="MPS",
-    help="Speed of sound in m/s (overrides --temperature).",
-)
-@click.option(
-    "--clock-ppm",
-    "clock_ppm",
-    type=FiniteRange(0.0, 1e4),
-    default=30.0,
-    show_default=True,
-    help="1-sigma sample-clock tolerance per device, ppm (widens sigma_m only).",
-)
+@speed_of_sound_option()
+@clock_ppm_option("1-sigma sample-clock tolerance per device, ppm (widens sigma_m only).")
 @detector_option
 @beep_options
 @ultrasonic_options
