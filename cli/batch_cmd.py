@@ -79,6 +79,15 @@ def _one_thread_per_worker() -> None:
     show_default=True,
     help="Scheme of sessions whose sidecar does not name one (see rangekit range).",
 )
+@click.option(
+    "--pair-by-name",
+    is_flag=True,
+    help="INPUT... are 2+ device folders in device order (the first is device 0), each "
+    "holding one mono recording per take; recordings with the same path relative to their "
+    "folder, suffix aside (dev0/day1/take_01.wav, dev1/day1/take_01.flac), are one "
+    "BeepBeep session named by that path (day1/take_01). A take missing from a folder is "
+    "an error row; a KEY.json beside device 0's file is its sidecar. beepbeep only.",
+)
 @self_distance_option(
     "beepbeep: speaker-to-microphone distance(s), m, where the sidecar gives none."
 )
@@ -102,6 +111,7 @@ def batch_cmd(
     resume,
     scheduler,
     scheme,
+    pair_by_name,
     self_distance,
     temp_c,
     speed,
@@ -116,7 +126,8 @@ def batch_cmd(
     'archive/**/*.wav'). Sessions: a sidecar JSON with a "files" list groups its files
     (and gives the scheme, beep, self-distances and true distances); else NAME_dev0.wav,
     NAME_dev1.wav, ... in one folder are devices 0, 1, ... of session NAME; else each
-    file is a session (rules in docs/batch.md).
+    file is a session (rules in docs/batch.md). With --pair-by-name, INPUT... are one
+    folder per device and files of the same name are paired (see the option).
 
     Writes one row per range (or one error row per failed session) to -o as sessions
     finish; progress (done/total, rate, ETA) on stderr. A bad file becomes an error row
@@ -130,14 +141,19 @@ def batch_cmd(
       rangekit batch recordings/ -o results.csv --resume
       rangekit batch recordings/ -o results.csv --scheduler tcp://10.0.0.5:8786
       rangekit batch logs/ --scheme echo --period 0.07 -o echo.csv
+      rangekit batch --pair-by-name phone_a/ phone_b/ -o results.csv --self-distance 0.1
     """
     _one_thread_per_worker()
-    from rangekit.batch import BatchOptions, find_sessions, run_batch
+    from rangekit.batch import BatchOptions, find_sessions, pair_sessions_by_name, run_batch
 
     if scheduler is not None and jobs is not None:
         raise click.UsageError("--jobs and --scheduler exclude each other")
     if scheduler is not None and not scheduler.strip():
         raise click.BadParameter("empty address", param_hint="--scheduler")
+    if pair_by_name and scheme != "beepbeep":
+        raise click.UsageError("--pair-by-name applies to --scheme beepbeep only")
+    if pair_by_name and len(inputs) < 2:
+        raise click.UsageError(f"--pair-by-name needs at least 2 device folders, got {len(inputs)}")
     sd = float_list(self_distance, name="--self-distance", lo=0.0, hi=2.0)
     if scheme == "beepbeep":
         for k in ("latency", "period", "tx_order", "channels", "min_range", "max_range"):
@@ -160,8 +176,11 @@ def batch_cmd(
         s: ultrasonic_kwargs(kw if s == scheme else {}, scheme=s, temp_c=temp_c, speed=speed)
         for s in ("oneway", "echo")
     }
-    options = BatchOptions(scheme=scheme, beepbeep=beepbeep, **ultra)
-    sessions = find_sessions(list(inputs))
+    options = BatchOptions(scheme=scheme, beepbeep=beepbeep, pair_by_name=pair_by_name, **ultra)
+    if pair_by_name:
+        sessions = pair_sessions_by_name(list(inputs))
+    else:
+        sessions = find_sessions(list(inputs))
     n_jobs = jobs if jobs is not None else (os.cpu_count() or 1)
     where = f"on {scheduler}" if scheduler else f"{n_jobs} job{'s' if n_jobs != 1 else ''}"
     state: dict = {"bar": None, "last": 0}

@@ -25,6 +25,16 @@ Grouping rules (``docs/batch.md``)
    ``NAME_dev1.wav``, ... in one folder (indices 0..N-1, no gap, N >= 2) are the mono
    recordings of devices 0..N-1 of session ``NAME``.
 3. Every other audio file is a session of its own.
+4. **Device folders paired by name** (:func:`pair_sessions_by_name`, ``rangekit batch
+   --pair-by-name DIR0 DIR1 ...``; replaces rules 1-3). Folder i holds device i's mono
+   recordings. Each recording (any of :data:`AUDIO_SUFFIXES`, searched recursively, names
+   starting with ``.`` skipped) is keyed by its path relative to its folder without the
+   suffix, case-sensitively (``dev1/day1/take_01.wav`` and ``dev2/day1/take_01.flac``:
+   key ``day1/take_01``). Each key is one BeepBeep session named by the key, with the
+   folders' files in device order; a key missing from some folder gives a session that
+   fails naming those folders (nothing is dropped silently). Two files of one folder with
+   the same key are an error. A sidecar ``KEY.json`` beside device 0's file gives the
+   values of rule 1 (its ``files`` are ignored: the names decide).
 
 Examples
 --------
@@ -55,6 +65,7 @@ __all__ = [
     "Session",
     "find_sessions",
     "iter_rows",
+    "pair_sessions_by_name",
     "run_batch",
     "run_session",
 ]
@@ -111,13 +122,16 @@ class BatchOptions:
     :func:`rangekit.ranging.range_files` (``beep``, ``detector``, ``temp_c``,
     ``speed_m_s``, ``self_distance_m``, ``clock_ppm``); ``oneway`` and ``echo`` those of
     :func:`rangekit.ranging.ultrasonic.range_ultrasonic_files` except ``scheme``, for the
-    sessions of each scheme.
+    sessions of each scheme. ``pair_by_name`` changes no ranging: set it when the sessions
+    come from :func:`pair_sessions_by_name`, so that the results file records it and a
+    resume with sessions grouped by rules 1-3 (other names, which would mix) is refused.
     """
 
     scheme: str = "beepbeep"
     beepbeep: dict[str, Any] = field(default_factory=dict)
     oneway: dict[str, Any] = field(default_factory=dict)
     echo: dict[str, Any] = field(default_factory=dict)
+    pair_by_name: bool = False
 
     def __post_init__(self) -> None:
         if self.scheme not in SCHEMES:
@@ -125,12 +139,14 @@ class BatchOptions:
 
     def fingerprint(self) -> str:
         """A stable text of every option that changes results (checked on resume)."""
-        parts = {
+        parts: dict[str, Any] = {
             "scheme": self.scheme,
             "beepbeep": {k: repr(v) for k, v in sorted(self.beepbeep.items())},
             "oneway": {k: repr(v) for k, v in sorted(self.oneway.items())},
             "echo": {k: repr(v) for k, v in sorted(self.echo.items())},
         }
+        if self.pair_by_name:  # only then, so that other batches' files still resume
+            parts["grouping"] = "pair-by-name"
         return json.dumps(parts, sort_keys=True)
 
 
@@ -207,6 +223,15 @@ def _sidecar_session(path: Path, obj: dict) -> Session:
         return Session(
             name, paths, problem=f"'{path}': scheme {scheme!r} is not one of {', '.join(SCHEMES)}"
         )
+    params, truth = _sidecar_values(obj, scheme)
+    return Session(name, paths, scheme=scheme, params=params, truth=truth)
+
+
+def _sidecar_values(
+    obj: dict, scheme: str | None
+) -> tuple[dict[str, Any], tuple[tuple[int, int, float], ...]]:
+    """The ranging parameters and true distances a sidecar gives (rule 1 of the module
+    docstring), for a session of ``scheme``; keys of the wrong type are ignored."""
     params: dict[str, Any] = {}
     if isinstance(obj.get("beep"), dict):
         params["beep"] = dict(obj["beep"])
@@ -242,7 +267,7 @@ def _sidecar_session(path: Path, obj: dict) -> Session:
             d = p.get("distance_m")
             if isinstance(d, (int, float)):
                 truth.append((int(p["a"]), int(p["b"]), float(d)))
-    return Session(name, paths, scheme=scheme, params=params, truth=tuple(truth))
+    return params, tuple(truth)
 
 
 def find_sessions(inputs: Sequence[str | os.PathLike]) -> list[Session]:
@@ -298,6 +323,132 @@ def find_sessions(inputs: Sequence[str | os.PathLike]) -> list[Session]:
     if dup:
         raise InputFileError(f"two sessions share the name {sorted(dup)[0]!r}")
     return sessions
+
+
+def pair_sessions_by_name(folders: Sequence[str | os.PathLike]) -> list[Session]:
+    """Pair the mono recordings of one folder per device by their names (rule 4).
+
+    Every recording in ``folders[i]`` (searched recursively; names starting with ``.``
+    skipped) is device i's, keyed by its path relative to the folder without the suffix.
+    Each key is one BeepBeep session named by the key (``day1/take_01``) whose files are
+    the folders' recordings of that key in device order; the rule in full is in the module
+    docstring and ``docs/batch.md``.
+
+    Parameters
+    ----------
+    folders : sequence of str or os.PathLike
+        Two or more device folders, in device order (``folders[0]`` holds device 0).
+
+    Returns
+    -------
+    list of Session
+        Sorted by name, every one with ``scheme="beepbeep"``. A key missing from some
+        folder gives a session whose ``problem`` names those folders (an error row in a
+        batch); a sidecar ``KEY.json`` beside device 0's recording gives its parameters
+        and true distances (its ``files`` are ignored).
+
+    Raises
+    ------
+    InvalidParameterError
+        Fewer than 2 folders, or a folder given twice or inside another.
+    InputFileError
+        A folder that does not exist or is not a folder; two recordings of one folder
+        with the same key (``take_01.wav`` and ``take_01.flac``); no recording at all.
+
+    Examples
+    --------
+    >>> import tempfile
+    >>> with tempfile.TemporaryDirectory() as tmp:
+    ...     for f in ("alice/take_01.wav", "alice/day2/take_02.flac", "bob/take_01.wav",
+    ...               "bob/day2/take_02.wav", "bob/take_03.wav"):
+    ...         (Path(tmp) / f).parent.mkdir(parents=True, exist_ok=True)
+    ...         (Path(tmp) / f).touch()
+    ...     sessions = pair_sessions_by_name([Path(tmp) / "alice", Path(tmp) / "bob"])
+    >>> for s in sessions:
+    ...     print(s.name, [Path(f).name for f in s.files], s.problem is not None)
+    day2/take_02 ['take_02.flac', 'take_02.wav'] False
+    take_01 ['take_01.wav', 'take_01.wav'] False
+    take_03 ['take_03.wav'] True
+    >>> sessions[2].problem.endswith("alice' (device 0)")
+    True
+    """
+    folders = list(folders)
+    if len(folders) < 2:
+        raise InvalidParameterError(
+            f"pairing by name needs at least 2 device folders, got {len(folders)}"
+        )
+    roots = [Path(f) for f in folders]
+    for root in roots:
+        if not root.exists():
+            raise InputFileError(f"cannot open '{root}': no such folder")
+        if not root.is_dir():
+            raise InputFileError(
+                f"'{root}' is not a folder: pairing by name takes one folder per device"
+            )
+    resolved = [r.resolve() for r in roots]
+    for i, a in enumerate(resolved):
+        for j, b in enumerate(resolved):
+            if i < j and a == b:
+                raise InvalidParameterError(f"device folder '{roots[j]}' is given twice")
+            if i != j and a in b.parents:
+                raise InvalidParameterError(
+                    f"device folder '{roots[j]}' is inside device folder '{roots[i]}'"
+                )
+    keyed: list[dict[str, Path]] = []
+    for root in roots:
+        found: dict[str, Path] = {}
+        for q in sorted(root.rglob("*")):
+            rel = q.relative_to(root)
+            if any(part.startswith(".") for part in rel.parts):
+                continue
+            if q.suffix.lower() not in AUDIO_SUFFIXES or not q.is_file():
+                continue
+            key = rel.with_suffix("").as_posix()
+            if key in found:
+                raise InputFileError(
+                    f"'{found[key]}' and '{q}' have the same name {key!r} (pairing by name "
+                    "ignores the suffix): keep one of them"
+                )
+            found[key] = q
+        keyed.append(found)
+    keys = sorted(set().union(*keyed))
+    if not keys:
+        shown = ", ".join(f"'{r}'" for r in roots)
+        raise InputFileError(f"no recordings found in the device folders {shown}")
+    sessions = []
+    for key in keys:
+        files = tuple(str(found[key]) for found in keyed if key in found)
+        missing = [f"'{r}' (device {i})" for i, r in enumerate(roots) if key not in keyed[i]]
+        if missing:
+            where = "folder " if len(missing) == 1 else "folders "
+            problem = f"no recording {key!r} in device {where}{', '.join(missing)}"
+            sessions.append(Session(key, files, scheme="beepbeep", problem=problem))
+        else:
+            sessions.append(_paired_session(key, files, roots[0] / f"{key}.json"))
+    return sessions
+
+
+def _paired_session(key: str, files: tuple[str, ...], sidecar: Path) -> Session:
+    """Session ``key`` of paired ``files``, with the values of ``sidecar`` if it exists."""
+    if not sidecar.is_file():
+        return Session(key, files, scheme="beepbeep")
+    try:
+        obj = json.loads(sidecar.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as e:
+        problem = f"cannot read the sidecar '{sidecar}': {e}"
+        return Session(key, files, scheme="beepbeep", problem=problem)
+    if not isinstance(obj, dict):
+        problem = f"the sidecar '{sidecar}' is not a JSON object"
+        return Session(key, files, scheme="beepbeep", problem=problem)
+    scheme = obj.get("scheme")
+    if scheme is not None and scheme != "beepbeep":
+        problem = (
+            f"the sidecar '{sidecar}' says scheme {scheme!r}, but device folders paired by "
+            "name hold BeepBeep sessions"
+        )
+        return Session(key, files, scheme="beepbeep", problem=problem)
+    params, truth = _sidecar_values(obj, "beepbeep")
+    return Session(key, files, scheme="beepbeep", params=params, truth=truth)
 
 
 # --- one session ----------------------------------------------------------------------------
