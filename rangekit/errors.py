@@ -16,6 +16,7 @@ from __future__ import annotations
 
 __all__ = [
     "AudioFormatError",
+    "CalibrationError",
     "DetectionError",
     "IncompatibleInputError",
     "InputFileError",
@@ -76,3 +77,13 @@ class DetectionError(RangekitError):
     """
 
     exit_code = 6
+
+
+class CalibrationError(RangekitError):
+    """A calibration cannot be trusted and is refused (exit code 7).
+
+    Examples: too few recordings, recordings at one distance that disagree beyond their
+    uncertainty (the message names them).
+    """
+
+    exit_code = 7

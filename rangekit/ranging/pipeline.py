@@ -19,7 +19,9 @@ from rangekit.ranging.beepbeep import (
     range_beepbeep,
     self_distances,
 )
+from rangekit.ranging.calibration import Calibration
 from rangekit.signals.beep import Beep, check_beep_fits
+from rangekit.signals.probe import Probe
 from rangekit.types import Arrivals, RangeResult
 
 __all__ = ["detect_channel", "range_channels", "range_files"]
@@ -44,9 +46,21 @@ def _spacing_hint(onsets: np.ndarray, *, beep: Beep, fs: float) -> str:
 
 
 def detect_channel(
-    ch: Channel, *, beep: Beep, detector: str = "changepoint", expected: int | None = None
+    ch: Channel,
+    *,
+    beep: Beep,
+    detector: str = "changepoint",
+    expected: int | None = None,
+    probe: Probe | None = None,
 ) -> Arrivals:
-    """Detect the beeps in one device's recording; explain in the error when too few are found."""
+    """Detect the beeps in one device's recording; explain in the error when too few are found.
+
+    With ``probe`` the arrivals are those of that signal
+    (:func:`rangekit.detect.template.detect_template`; ``beep`` and ``detector`` are
+    unused).
+    """
+    if probe is not None:
+        return _detect_probe(ch, probe=probe, expected=expected)
     check_beep_fits(beep, fs=ch.fs, what=f"'{ch.source}'")
     kw = {"max_beeps": expected} if detector == "xcorr" else {}
     arr = detect(ch.x, fs=ch.fs, beep=beep, detector=detector, **kw)
@@ -66,6 +80,19 @@ def detect_channel(
     return arr
 
 
+def _detect_probe(ch: Channel, *, probe: Probe, expected: int | None) -> Arrivals:
+    from rangekit.detect.template import detect_template
+
+    arr = detect_template(ch.x, fs=ch.fs, probe=probe, expected=expected, what=f"'{ch.source}'")
+    if expected is not None and len(arr) < expected:
+        found = "no arrival" if len(arr) == 0 else f"{len(arr)} arrival(s)"
+        raise DetectionError(
+            f"'{ch.source}': found {found} of probe '{probe.name}' but expected {expected} "
+            "(one per device); check that this is the probe that was played"
+        )
+    return arr
+
+
 def range_channels(
     channels: Sequence[Channel],
     *,
@@ -75,6 +102,8 @@ def range_channels(
     speed_m_s: float | None = None,
     self_distance_m: float | Sequence[float] = 0.0,
     clock_ppm: float = DEFAULT_CLOCK_PPM,
+    probe: Probe | None = None,
+    calibration: Calibration | None = None,
 ) -> RangeResult:
     """Two-way ranges between devices from their recordings (device i = channel i).
 
@@ -94,6 +123,14 @@ def range_channels(
         Speaker-to-microphone distance of the devices, metres.
     clock_ppm : float
         1-sigma sample-clock tolerance per device, ppm (uncertainty only).
+    probe : Probe, optional
+        The signal every device played, when it is not the beep (a sweep, a lab's own
+        file): arrivals by matched filtering with first-path selection
+        (:func:`rangekit.detect.template.detect_template`).
+    calibration : Calibration, optional
+        A two-way calibration (:func:`rangekit.ranging.calibration.fit_calibration`) to
+        apply: its offset replaces ``self_distance_m`` (which must then be 0) and a fitted
+        speed of sound replaces ``temp_c``/``speed_m_s``.
     """
     beep = Beep() if beep is None else beep
     n = len(channels)
@@ -104,16 +141,26 @@ def range_channels(
     if detector not in DETECTORS:
         raise InvalidParameterError(f"detector={detector!r} must be one of {', '.join(DETECTORS)}")
     arrivals, errors = [], []
+    if calibration is not None:
+        calibration.check_scheme("beepbeep")
+        if np.any(self_distances(self_distance_m, n) != 0):
+            raise InvalidParameterError(
+                "give self_distance_m or a calibration, not both: the calibration's offset "
+                "already holds the speaker-to-microphone distances"
+            )
     for ch in channels:
         try:
-            arrivals.append(detect_channel(ch, beep=beep, detector=detector, expected=n))
+            arrivals.append(
+                detect_channel(ch, beep=beep, detector=detector, expected=n, probe=probe)
+            )
         except DetectionError as e:
             errors.append(str(e))
     if errors:
         raise DetectionError("; ".join(errors))
-    return range_beepbeep(
+    result = range_beepbeep(
         arrivals, speed_m_s=c, self_distance_m=self_distance_m, clock_ppm=clock_ppm
     )
+    return result if calibration is None else calibration.apply(result)
 
 
 def range_files(

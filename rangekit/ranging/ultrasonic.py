@@ -48,7 +48,9 @@ from rangekit.detect.matched import (
 )
 from rangekit.errors import IncompatibleInputError, InvalidParameterError
 from rangekit.physics import DEFAULT_TEMP_C, speed_of_sound_m_s
+from rangekit.ranging.calibration import Calibration
 from rangekit.signals.barker import CodedBurst, check_burst_fits, srf02_ping
+from rangekit.signals.probe import Probe
 from rangekit.signals.transducer import Transducer
 
 __all__ = [
@@ -265,6 +267,7 @@ def range_oneway(
     block: int = DEFAULT_BLOCK,
     windows: np.ndarray | None = None,
     first_window: int = 0,
+    probe: Probe | None = None,
 ) -> list[ToF]:
     """One-way (RF-synchronised) ranges from a recording whose sample 0 is the trigger.
 
@@ -302,6 +305,11 @@ def range_oneway(
     first_window : int
         Number of the first window (window ``k`` of ``windows`` is ``first_window + k``,
         also for ``tx_ids``).
+    probe : Probe, optional
+        Any other emitted signal (a sweep, a lab's own file): the template is the probe at
+        ``fs`` (:meth:`rangekit.signals.probe.Probe.at_rate`); ``burst``, ``tx`` and ``rx``
+        are then unused (the recording's own responses stay in the arrival time, which a
+        calibration's latency absorbs).
 
     Returns
     -------
@@ -310,7 +318,10 @@ def range_oneway(
     """
     fs = V.sample_rate(fs)
     burst = CodedBurst() if burst is None else burst
-    check_burst_fits(burst, fs=fs)
+    if probe is None:
+        check_burst_fits(burst, fs=fs)
+    else:
+        probe.check_fits(fs)
     x = _as_channels(x)
     latency_s = V.positive("latency_s", latency_s, allow_zero=True)
     c = _speed(temp_c, speed_m_s)
@@ -325,7 +336,7 @@ def range_oneway(
     windows = _windows(
         x.shape[1], fs=fs, period_s=period_s, windows=windows, first_window=first_window
     )
-    template = coded_template(burst, fs=fs, tx=tx, rx=rx)
+    template = coded_template(burst, fs=fs, tx=tx, rx=rx) if probe is None else probe.at_rate(fs)
     return _ranges(
         x,
         fs=fs,
@@ -360,6 +371,7 @@ def range_echo(
     block: int = DEFAULT_BLOCK,
     windows: np.ndarray | None = None,
     first_window: int = 0,
+    probe: Probe | None = None,
 ) -> list[ToF]:
     """Pulse-echo ranges (SRF02 style) from a recording whose sample 0 is the ping.
 
@@ -367,11 +379,15 @@ def range_echo(
     earlier than ``2 min_range_m / c`` fall in the ring-down and are not searched; nothing
     before ``2 max_range_m / c`` means out of range (distance NaN, ``None`` in JSON).
     ``period_s`` splits a log of many ranging cycles (0.07 s for the SRF02), or
-    ``windows`` gives them explicitly. Other parameters as :func:`range_oneway`.
+    ``windows`` gives them explicitly. Other parameters as :func:`range_oneway` (with
+    ``probe`` the template is the probe and ``burst``, ``transducer`` are unused).
     """
     fs = V.sample_rate(fs)
     burst = srf02_ping() if burst is None else burst
-    check_burst_fits(burst, fs=fs)
+    if probe is None:
+        check_burst_fits(burst, fs=fs)
+    else:
+        probe.check_fits(fs)
     x = _as_channels(x)
     c = _speed(temp_c, speed_m_s)
     min_range_m = V.positive("min_range_m", min_range_m, allow_zero=True)
@@ -387,7 +403,11 @@ def range_echo(
         raise IncompatibleInputError(
             f"recording of {x.shape[1]} samples is shorter than the ring-down blanking"
         )
-    template = coded_template(burst, fs=fs, tx=transducer, rx=transducer)
+    template = (
+        coded_template(burst, fs=fs, tx=transducer, rx=transducer)
+        if probe is None
+        else probe.at_rate(fs)
+    )
     rows = _ranges(
         x,
         fs=fs,
@@ -417,7 +437,14 @@ ULTRASONIC_SCHEMES = ("oneway", "echo")
 
 
 def _file_burst(
-    path, n_channels: int, fs: float, *, scheme: str, channels: int | None, burst
+    path,
+    n_channels: int,
+    fs: float,
+    *,
+    scheme: str,
+    channels: int | None,
+    burst,
+    probe: Probe | None = None,
 ) -> CodedBurst:
     """Check a file's channel count and rate; the scheme's burst at the file's rate."""
     if channels is not None and n_channels != channels:
@@ -426,8 +453,19 @@ def _file_burst(
             f"({'one per receiver' if scheme == 'oneway' else 'one per sensor'})"
         )
     b = (CodedBurst() if scheme == "oneway" else srf02_ping()) if burst is None else burst
+    if probe is not None:
+        probe.check_fits(fs, what=f"'{path}'")
+        return b
     check_burst_fits(b, fs=fs, what=f"'{path}'")
     return b.with_fs(fs)
+
+
+def _calibrated(r: ToF, cal: Calibration, c: float) -> ToF:
+    """``r`` with its distance from the calibration (``arrival_s`` is the measured time)."""
+    if not math.isfinite(r.arrival_s):
+        return r
+    d, s = cal.distance(r.arrival_s, r.sigma_m / c, speed_m_s=c)
+    return ToF(r.window, r.tx, r.channel, d, s, r.snr_db, r.arrival_s)
 
 
 def _no_burst_message(path, scheme: str) -> str:
@@ -443,6 +481,8 @@ def range_ultrasonic_files(
     scheme: str,
     channels: int | None = None,
     burst: CodedBurst | None = None,
+    probe: Probe | None = None,
+    calibration: Calibration | None = None,
     **kw,
 ) -> list[dict]:
     """Ranges of every file, channel and window; rows for :func:`format_tof`.
@@ -459,6 +499,12 @@ def range_ultrasonic_files(
         Channel count every file must have (e.g. 3 receivers); None accepts any.
     burst : CodedBurst, optional
         The emitted code (default per scheme: Barker-7 for oneway, the SRF02 ping for echo).
+    probe : Probe, optional
+        Any other emitted signal instead of the burst (see :func:`range_oneway`).
+    calibration : Calibration, optional
+        A one-way calibration (:mod:`rangekit.ranging.calibration`): its latency (and
+        fitted speed) turn the arrival times into distances; ``latency_s`` must then be
+        left at 0.
     **kw
         Passed to the scheme's function.
 
@@ -479,11 +525,26 @@ def range_ultrasonic_files(
     if channels is not None:
         channels = V.positive_int("channels", channels)
     func = range_oneway if scheme == "oneway" else range_echo
+    if probe is not None:
+        kw["probe"] = probe
+    c = _speed(kw.get("temp_c", DEFAULT_TEMP_C), kw.get("speed_m_s"))
+    if calibration is not None:
+        calibration.check_scheme(scheme)
+        if kw.get("latency_s", 0.0) != 0.0:
+            raise InvalidParameterError(
+                "give latency_s or a calibration, not both: the calibration's latency replaces it"
+            )
+        # Search from the calibrated latency; distances are recomputed below.
+        kw["latency_s"] = max(0.0, calibration.latency_s)
     rows: list[dict] = []
     for p in paths:
         x, fs = read_audio(p)
-        b = _file_burst(p, x.shape[1], fs, scheme=scheme, channels=channels, burst=burst)
+        b = _file_burst(
+            p, x.shape[1], fs, scheme=scheme, channels=channels, burst=burst, probe=probe
+        )
         res = func(x.T, fs=fs, burst=b, **kw)
+        if calibration is not None:
+            res = [_calibrated(r, calibration, c) for r in res]
         if scheme == "oneway" and not any(math.isfinite(r.distance_m) for r in res):
             raise DetectionError(_no_burst_message(p, scheme))
         for r in res:

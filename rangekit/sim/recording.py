@@ -37,6 +37,7 @@ from rangekit import _validate as V
 from rangekit.errors import InvalidParameterError
 from rangekit.physics import speed_of_sound_m_s
 from rangekit.signals.beep import Beep, beep_waveform, check_beep_fits
+from rangekit.signals.probe import Probe
 from rangekit.sim._fracdelay import interp_bandlimited
 from rangekit.sim.noise import make_noise
 from rangekit.sim.room import ShoeboxRoom, image_sources
@@ -150,7 +151,7 @@ def pair_devices(
 def render_beepbeep(
     devices: Sequence[Device],
     *,
-    beep: Beep | None = None,
+    beep: Beep | Probe | None = None,
     temp_c: float = 20.0,
     snr_db: float | None = 20.0,
     noise: str = "white",
@@ -167,8 +168,11 @@ def render_beepbeep(
     ----------
     devices : sequence of Device
         Two or more devices; device i plays i-th.
-    beep : Beep, optional
-        The beep every device plays (default: the rangekit beep).
+    beep : Beep or Probe, optional
+        The beep every device plays (default: the rangekit beep), or any probe signal
+        (:class:`rangekit.signals.probe.Probe`, e.g. a sweep): its samples are played at
+        its rate through each device's clock. A probe's "plateau power" in the SNR is its
+        mean power over its duration; the truth's onsets are its sample 0.
     temp_c : float
         Air temperature; sets the speed of sound.
     snr_db : float or None
@@ -198,8 +202,12 @@ def render_beepbeep(
     n_dev = len(devices)
     if n_dev < 2:
         raise InvalidParameterError(f"need at least 2 devices, got {n_dev}")
+    is_probe = isinstance(beep, Probe)
     for i, d in enumerate(devices):
-        check_beep_fits(beep, fs=d.fs, what=f"device {i}")
+        if is_probe:
+            beep.check_fits(d.fs, what=f"device {i}")
+        else:
+            check_beep_fits(beep, fs=d.fs, what=f"device {i}")
     c = speed_of_sound_m_s(temp_c)
     if snr_db is not None:
         snr_db = V.in_range("snr_db", snr_db, -60.0, 200.0)
@@ -221,7 +229,11 @@ def render_beepbeep(
             play[j - 1] + beep.duration_s * (1 - devices[j - 1].clock_ppm * 1e-6) + gaps[j - 1]
         )
 
-    src = beep_waveform(beep)
+    if is_probe:
+        src, src_fs = beep.samples, beep.fs
+        amp = math.sqrt(2.0 * float(np.mean(src**2)))  # power amp^2 / 2 = mean power
+    else:
+        src, src_fs, amp = beep_waveform(beep), beep.fs, beep.amplitude
     hw = 32
     max_r = max(float(np.linalg.norm(a.speaker_m - b.mic_m)) for a in devices for b in devices)
     if room is not None:
@@ -240,7 +252,7 @@ def render_beepbeep(
                 pos, gains = dj.speaker_m[None, :], np.ones(1)
             else:
                 pos, gains, _ = image_sources(dj.speaker_m, room)
-            rate_j = beep.fs * (1 + dj.clock_ppm * 1e-6)
+            rate_j = src_fs * (1 + dj.clock_ppm * 1e-6)
             for p, g in zip(pos, gains, strict=True):
                 r = float(np.linalg.norm(p - di.mic_m))
                 r = max(r, 1e-3)
@@ -257,7 +269,7 @@ def render_beepbeep(
                 x[n0:n1] += (g / r) * interp_bandlimited(src, u, half_width=hw)
             r_dir = float(np.linalg.norm(dj.speaker_m - di.mic_m))
             onsets.append((play[j] + r_dir / c - di.rec_start_s) * rate_i)
-            weakest = min(weakest, beep.amplitude / max(r_dir, 1e-3))
+            weakest = min(weakest, amp / max(r_dir, 1e-3))
         if snr_db is not None:
             sig_pow = 0.5 * weakest**2
             sigma = math.sqrt(sig_pow / 10 ** (float(snr_db) / 10))
@@ -288,15 +300,7 @@ def render_beepbeep(
         "speed_of_sound_m_s": c,
         "snr_db": None if snr_db is None else float(snr_db),
         "noise": noise,
-        "beep": {
-            "f_hz": beep.f_hz,
-            "n_bursts": beep.n_bursts,
-            "spacing": beep.spacing,
-            "burst_len": beep.burst_len,
-            "taper": beep.taper,
-            "amplitude": beep.amplitude,
-            "fs": beep.fs,
-        },
+        "beep": _signal_truth(beep),
         "room": None
         if room is None
         else {
@@ -308,3 +312,18 @@ def render_beepbeep(
         "pairs": pairs,
     }
     return SimResult(recordings, [d.fs for d in devices], truth)
+
+
+def _signal_truth(beep: Beep | Probe) -> dict:
+    """The played signal's description in the truth sidecar."""
+    if isinstance(beep, Probe):
+        return {"probe": beep.name, "fs": beep.fs, "n_samples": len(beep.samples)}
+    return {
+        "f_hz": beep.f_hz,
+        "n_bursts": beep.n_bursts,
+        "spacing": beep.spacing,
+        "burst_len": beep.burst_len,
+        "taper": beep.taper,
+        "amplitude": beep.amplitude,
+        "fs": beep.fs,
+    }

@@ -1,0 +1,436 @@
+"""Calibration of a device pair (two-way) or a link (one-way) from recordings at known distances.
+
+Model
+-----
+Every scheme turns a measured time ``tau`` into a distance ``d = c tau + b``:
+
+* two-way (BeepBeep, Peng et al. 2007; Jiang et al. 2018 §4.3): ``tau = ((t_a[b] - t_a[a])
+  - (t_b[b] - t_b[a])) / 2`` and ``b = (s_a + s_b) / 2``, the mean speaker-to-microphone
+  distance of the two devices (a length: it does not change with the temperature). Every
+  latency cancels.
+* one-way (Kim & Kim 2013 §II-A): ``tau`` is the arrival time from the trigger and ``b =
+  -c L`` with ``L`` the system latency (trigger to emission: a time, so the offset is kept
+  as ``latency_s``).
+
+With recordings at **one** known distance ``D`` only the offset is fitted, with the speed
+of sound ``c0`` from the air temperature (:func:`rangekit.physics.speed_of_sound_m_s`):
+``b_i = D - c0 tau_i``, averaged. One distance is enough when the temperature is known to
+a few degrees: an error ``dc`` in the speed of sound then gives ``dc / c * (d - D)`` at
+distance ``d`` (0.18 % per degree: 1.8 mm per metre away from ``D`` per degree), and the
+offset soaks up everything fixed (latency, speaker and microphone geometry, the
+detector's and the probe's fixed delays).
+
+With **two or more** distinct distances the effective speed is fitted too, by weighted
+least squares of ``tau_i = (d_i - b) / c`` (the errors are in the measured times), which
+absorbs a wrong temperature and any sample-clock scale common to the recordings.
+
+Uncertainty: each recording's time carries its detection 1-sigma (Cramér–Rao) and a
+placement tolerance ``tolerance_m / c0`` (how well the distance was measured, default
+5 mm); the fit's covariance is scaled up by the reduced chi-square when the recordings
+scatter more than that. Ranges after calibration carry the propagated variance
+``c^2 s_tau^2 + tau^2 s_c^2 + s_b^2 + 2 tau cov(c, b)``.
+
+Refusals (:class:`rangekit.errors.CalibrationError`, exit 7): fewer than
+:data:`MIN_RECORDINGS` recordings for an offset, or fewer than
+:data:`MIN_RECORDINGS_SPEED` for offset and speed; and recordings that disagree: each
+recording is compared with the fit of all the others (leave-one-out); one more than
+:data:`OUTLIER_SIGMA` of its predicted uncertainty away is named in the message.
+
+Examples
+--------
+>>> m = [Measurement("r1.wav", 1.0, 0.0027, 1e-6), Measurement("r2.wav", 1.0, 0.0028, 1e-6),
+...      Measurement("r3.wav", 1.0, 0.00275, 1e-6)]
+>>> cal = fit_calibration(m, scheme="beepbeep", speed_m_s=343.0)
+>>> cal.model, round(cal.offset_m, 5)
+('offset', 0.05675)
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+from collections.abc import Sequence
+from dataclasses import asdict, dataclass, field, replace
+
+import numpy as np
+
+from rangekit import _validate as V
+from rangekit.errors import CalibrationError, InputFileError, InvalidParameterError
+from rangekit.types import Range, RangeResult
+
+__all__ = [
+    "CALIBRATION_SCHEMES",
+    "MIN_RECORDINGS",
+    "MIN_RECORDINGS_SPEED",
+    "OUTLIER_SIGMA",
+    "Calibration",
+    "Measurement",
+    "fit_calibration",
+    "read_calibration",
+]
+
+#: Schemes a calibration applies to.
+CALIBRATION_SCHEMES = ("beepbeep", "oneway")
+#: Fewest recordings for an offset-only calibration (two cannot tell which one is wrong).
+MIN_RECORDINGS = 3
+#: Fewest recordings for an offset-and-speed calibration (two distinct distances).
+MIN_RECORDINGS_SPEED = 4
+#: A recording further than this many sigma from the fit of the others is refused.
+OUTLIER_SIGMA = 4.0
+#: Default placement tolerance of the known distances, m.
+DEFAULT_TOLERANCE_M = 0.005
+#: Format tag of calibration files.
+FORMAT = "rangekit-calibration/1"
+
+
+@dataclass(frozen=True)
+class Measurement:
+    """One calibration measurement: a recording's time at a known distance.
+
+    Attributes
+    ----------
+    source : str
+        Where it came from (file name, plus window/channel for one-way), for messages.
+    distance_m : float
+        The known distance, m.
+    tau_s : float
+        The measured time ``tau`` of the model ``d = c tau + b`` (see module docstring), s.
+    sigma_s : float
+        Its 1-sigma from the detection, s.
+    """
+
+    source: str
+    distance_m: float
+    tau_s: float
+    sigma_s: float
+
+
+@dataclass(frozen=True)
+class Calibration:
+    """A fitted calibration (``d = c tau + b``); see the module docstring.
+
+    Attributes
+    ----------
+    scheme : str
+        ``"beepbeep"`` or ``"oneway"``.
+    model : str
+        ``"offset"`` (speed of sound from the temperature when applied) or
+        ``"offset+speed"`` (fitted speed).
+    offset_m, sigma_offset_m : float
+        ``b`` and its 1-sigma at the calibration's speed of sound, m.
+    latency_s, sigma_latency_s : float
+        ``-b / c`` and its 1-sigma, s (what a one-way offset-only calibration applies).
+    speed_m_s, sigma_speed_m_s : float
+        The speed of sound: fitted (``offset+speed``), or the one the offset was fitted
+        with (``offset``; then ``sigma_speed_m_s`` is 0 and ranging uses its own).
+    cov_speed_offset : float
+        Covariance of the fitted speed and offset (0 for ``offset``).
+    n_recordings : int
+        Measurements used.
+    distances_m : tuple of float
+        The distinct known distances.
+    rms_residual_m : float
+        RMS of the measurements' residuals from the fit, m.
+    residuals : tuple of dict
+        Per measurement: ``source``, ``distance_m``, ``measured_m``, ``residual_m``.
+    probe : str or None
+        The probe the recordings were ranged with (None: the built-in beep or burst).
+    """
+
+    scheme: str
+    model: str
+    offset_m: float
+    sigma_offset_m: float
+    latency_s: float
+    sigma_latency_s: float
+    speed_m_s: float
+    sigma_speed_m_s: float
+    cov_speed_offset: float
+    n_recordings: int
+    distances_m: tuple[float, ...]
+    rms_residual_m: float
+    residuals: tuple[dict, ...] = field(default=(), repr=False)
+    probe: str | None = None
+
+    def check_scheme(self, scheme: str) -> None:
+        """Raise unless this calibration was made for ``scheme``."""
+        if scheme != self.scheme:
+            raise InvalidParameterError(
+                f"the calibration is for --scheme {self.scheme}, not {scheme}; calibrate with "
+                f"recordings of the {scheme} scheme"
+            )
+
+    def distance(self, tau_s: float, sigma_s: float, *, speed_m_s: float) -> tuple[float, float]:
+        """``(d, sigma_d)`` of a measured time; ``speed_m_s`` is used by offset-only models."""
+        if self.model == "offset+speed":
+            c, b = self.speed_m_s, self.offset_m
+            d = c * tau_s + b
+            var = (
+                (c * sigma_s) ** 2
+                + (tau_s * self.sigma_speed_m_s) ** 2
+                + self.sigma_offset_m**2
+                + 2.0 * tau_s * self.cov_speed_offset
+            )
+        elif self.scheme == "oneway":
+            c = speed_m_s
+            d = c * (tau_s - self.latency_s)
+            var = c * c * (sigma_s**2 + self.sigma_latency_s**2)
+        else:
+            c = speed_m_s
+            d = c * tau_s + self.offset_m
+            var = (c * sigma_s) ** 2 + self.sigma_offset_m**2
+        return float(d), float(math.sqrt(max(var, 0.0)))
+
+    def apply(self, result: RangeResult) -> RangeResult:
+        """The two-way ``result`` (ranged with zero self-distances) with this calibration."""
+        self.check_scheme("beepbeep")
+        c0 = result.speed_m_s
+        ranges = []
+        for r in result.ranges:
+            if not math.isfinite(r.distance_m):
+                ranges.append(r)
+                continue
+            d, s = self.distance(r.distance_m / c0, r.sigma_m / c0, speed_m_s=c0)
+            flags = tuple(f for f in r.flags if f != "negative") + (("negative",) if d < 0 else ())
+            ranges.append(Range(r.a, r.b, d, s, flags))
+        c = self.speed_m_s if self.model == "offset+speed" else c0
+        return replace(result, ranges=tuple(ranges), speed_m_s=c)
+
+    def to_dict(self) -> dict:
+        """Plain-JSON form (what :meth:`write` stores)."""
+        d = asdict(self)
+        d["distances_m"] = list(self.distances_m)
+        d["residuals"] = list(self.residuals)
+        return {"format": FORMAT, **d}
+
+    def write(self, path: str | os.PathLike) -> None:
+        """Write the calibration as JSON, atomically (a temporary file renamed over it)."""
+        from pathlib import Path
+
+        p = Path(path)
+        if not p.parent.exists():
+            raise InputFileError(f"cannot write '{p}': folder '{p.parent}' does not exist")
+        tmp = p.with_name(f".{p.name}.part")
+        tmp.write_text(json.dumps(self.to_dict(), indent=2) + "\n", encoding="utf-8")
+        os.replace(tmp, p)
+
+
+def read_calibration(path: str | os.PathLike) -> Calibration:
+    """Read a calibration written by :meth:`Calibration.write` (``rangekit calibrate``).
+
+    Raises
+    ------
+    InputFileError
+        The file is missing or not a rangekit calibration.
+    """
+    from pathlib import Path
+
+    p = Path(path)
+    try:
+        obj = json.loads(p.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise InputFileError(f"cannot open '{p}': no such file") from None
+    except (OSError, UnicodeDecodeError) as e:
+        raise InputFileError(f"cannot read '{p}': {e}") from None
+    except json.JSONDecodeError as e:
+        raise InputFileError(f"'{p}' is not JSON (line {e.lineno}: {e.msg})") from None
+    if not isinstance(obj, dict) or obj.get("format") != FORMAT:
+        raise InputFileError(
+            f'\'{p}\' is not a rangekit calibration (no "format": "{FORMAT}"; write one '
+            "with `rangekit calibrate`)"
+        )
+    names = [f for f in Calibration.__dataclass_fields__]
+    try:
+        kw = {k: obj[k] for k in names if k in obj}
+        kw["distances_m"] = tuple(float(v) for v in kw.get("distances_m", ()))
+        kw["residuals"] = tuple(kw.get("residuals", ()))
+        cal = Calibration(**kw)
+        floats = (
+            "offset_m",
+            "sigma_offset_m",
+            "latency_s",
+            "sigma_latency_s",
+            "speed_m_s",
+            "sigma_speed_m_s",
+            "cov_speed_offset",
+        )
+        for k in floats:
+            if not isinstance(getattr(cal, k), (int, float)) or not math.isfinite(getattr(cal, k)):
+                raise TypeError(f"{k} must be a finite number")
+        if cal.scheme not in CALIBRATION_SCHEMES or cal.model not in ("offset", "offset+speed"):
+            raise TypeError(f"unknown scheme {cal.scheme!r} or model {cal.model!r}")
+    except (TypeError, KeyError) as e:
+        raise InputFileError(f"'{p}' is not a valid rangekit calibration: {e}") from None
+    return cal
+
+
+def _offset_fit(d: np.ndarray, tau: np.ndarray, var: np.ndarray, c: float):
+    """Weighted mean offset ``b = d - c tau``; returns (b, var_b, residuals, chi2_red)."""
+    bi = d - c * tau
+    w = 1.0 / (c * c * var)
+    b = float(np.sum(w * bi) / np.sum(w))
+    r = bi - b
+    dof = len(d) - 1
+    chi2 = float(np.sum(w * r * r) / dof) if dof > 0 else 1.0
+    return b, max(1.0, chi2) / float(np.sum(w)), r, chi2
+
+
+def _line_fit(d: np.ndarray, tau: np.ndarray, var: np.ndarray):
+    """Weighted LS of ``tau = alpha d + beta``; returns (theta, cov, residuals_s, chi2_red)."""
+    X = np.stack([d, np.ones_like(d)], axis=1)
+    w = 1.0 / var
+    A = X.T @ (X * w[:, None])
+    theta = np.linalg.solve(A, X.T @ (w * tau))
+    r = tau - X @ theta
+    dof = len(d) - 2
+    chi2 = float(np.sum(w * r * r) / dof) if dof > 0 else 1.0
+    cov = np.linalg.inv(A) * max(1.0, chi2)
+    return theta, cov, r, chi2
+
+
+def fit_calibration(
+    measurements: Sequence[Measurement],
+    *,
+    scheme: str,
+    speed_m_s: float,
+    fit_speed: bool | None = None,
+    tolerance_m: float = DEFAULT_TOLERANCE_M,
+    outlier_sigma: float = OUTLIER_SIGMA,
+    probe: str | None = None,
+) -> Calibration:
+    """Fit the offset (one distance) or the offset and speed (several) of ``d = c tau + b``.
+
+    Parameters
+    ----------
+    measurements : sequence of Measurement
+        The recordings' times at their known distances.
+    scheme : {"beepbeep", "oneway"}
+        What the times are (module docstring).
+    speed_m_s : float
+        Speed of sound at the calibration (from the temperature), m/s.
+    fit_speed : bool, optional
+        Fit the speed too; default: when there are two or more distinct distances.
+    tolerance_m : float
+        How well the known distances are known (1-sigma placement), m (default 5 mm).
+    outlier_sigma : float
+        A measurement this many sigma from the leave-one-out fit is refused (default 4).
+    probe : str, optional
+        Name of the probe, stored for the record.
+
+    Raises
+    ------
+    CalibrationError
+        Too few measurements, or some disagree with the others (named in the message).
+    """
+    if scheme not in CALIBRATION_SCHEMES:
+        raise InvalidParameterError(f"scheme={scheme!r} must be one of {CALIBRATION_SCHEMES}")
+    c0 = V.in_range("speed_m_s", speed_m_s, 100.0, 2000.0)
+    tol = V.positive("tolerance_m", tolerance_m, allow_zero=True)
+    k = V.positive("outlier_sigma", outlier_sigma)
+    ms = list(measurements)
+    for m in ms:
+        V.positive(f"distance_m of {m.source}", m.distance_m)
+        if not (math.isfinite(m.tau_s) and math.isfinite(m.sigma_s)):
+            raise CalibrationError(f"'{m.source}': no measurement (nothing was detected)")
+    d = np.array([m.distance_m for m in ms], dtype=np.float64)
+    distinct = sorted({round(float(v), 9) for v in d})
+    speed = len(distinct) >= 2 if fit_speed is None else bool(fit_speed)
+    need = MIN_RECORDINGS_SPEED if speed else MIN_RECORDINGS
+    if speed and len(distinct) < 2:
+        raise CalibrationError(
+            "fitting the speed of sound needs recordings at two or more distinct distances; "
+            f"all {len(ms)} are at {distinct[0] if distinct else '?'} m"
+        )
+    if len(ms) < need:
+        what = "an offset and a speed" if speed else "an offset"
+        names = ", ".join(f"'{m.source}'" for m in ms) or "none"
+        raise CalibrationError(
+            f"too few recordings to calibrate {what}: {len(ms)} given ({names}), at least "
+            f"{need} needed (with fewer, a wrong one cannot be told from the others)"
+        )
+    tau = np.array([m.tau_s for m in ms], dtype=np.float64)
+    var = np.array([m.sigma_s**2 for m in ms], dtype=np.float64) + (tol / c0) ** 2
+    var = np.maximum(var, 1e-24)
+
+    def loo_z(i: int) -> float:
+        keep = np.arange(len(ms)) != i
+        if speed:
+            if len({round(float(v), 9) for v in d[keep]}) < 2:
+                return 0.0  # the others cannot fit a line: no check from them
+            th, cov, r, _ = _line_fit(d[keep], tau[keep], var[keep])
+            x = np.array([d[i], 1.0])
+            pred = float(x @ th)
+            s2 = float(x @ cov @ x) + var[i] * max(1.0, _spread(r, var[keep], 2))
+            return abs(tau[i] - pred) / math.sqrt(s2)
+        b, vb, r, _ = _offset_fit(d[keep], tau[keep], var[keep], c0)
+        s2 = vb + c0 * c0 * var[i] * max(1.0, _spread(r / c0, var[keep], 1))
+        return abs(d[i] - c0 * tau[i] - b) / math.sqrt(s2)
+
+    z = np.array([loo_z(i) for i in range(len(ms))])
+    bad = np.flatnonzero(z > k)
+    if len(bad):
+        bad = bad[np.argsort(-z[bad])]
+        listed = "; ".join(
+            f"'{ms[i].source}' ({ms[i].distance_m:g} m: {z[i]:.1f} sigma off)" for i in bad
+        )
+        raise CalibrationError(
+            f"recordings disagree beyond their uncertainty: {listed}, compared with the "
+            f"others (limit {k:g} sigma, tolerance {tol * 100:g} cm); check their distances "
+            "or leave them out"
+        )
+    if speed:
+        th, cov, _, _ = _line_fit(d, tau, var)
+        alpha, beta = float(th[0]), float(th[1])
+        if alpha <= 0:
+            raise CalibrationError("the fitted speed of sound is not positive; check the distances")
+        c = 1.0 / alpha
+        b = -beta / alpha
+        J = np.array([[-1.0 / alpha**2, 0.0], [beta / alpha**2, -1.0 / alpha]])
+        C = J @ cov @ J.T
+        s_c, s_b, cov_cb = math.sqrt(C[0, 0]), math.sqrt(C[1, 1]), float(C[0, 1])
+        lat, s_lat = beta, math.sqrt(cov[1, 1])  # -b / c = beta exactly
+        model = "offset+speed"
+        if not 100.0 <= c <= 2000.0:
+            raise CalibrationError(
+                f"the fitted speed of sound {c:.1f} m/s is implausible; check the distances"
+            )
+    else:
+        b, vb, _, _ = _offset_fit(d, tau, var, c0)
+        c, s_c, cov_cb = c0, 0.0, 0.0
+        s_b = math.sqrt(vb)
+        lat, s_lat = -b / c0, s_b / c0
+        model = "offset"
+    measured = c * tau + b
+    residuals = tuple(
+        {
+            "source": m.source,
+            "distance_m": float(m.distance_m),
+            "measured_m": float(measured[i]),
+            "residual_m": float(measured[i] - m.distance_m),
+        }
+        for i, m in enumerate(ms)
+    )
+    rms = float(np.sqrt(np.mean((measured - d) ** 2)))
+    return Calibration(
+        scheme=scheme,
+        model=model,
+        offset_m=float(b),
+        sigma_offset_m=float(s_b),
+        latency_s=float(lat),
+        sigma_latency_s=float(s_lat),
+        speed_m_s=float(c),
+        sigma_speed_m_s=float(s_c),
+        cov_speed_offset=cov_cb,
+        n_recordings=len(ms),
+        distances_m=tuple(float(v) for v in distinct),
+        rms_residual_m=rms,
+        residuals=residuals,
+        probe=probe,
+    )
+
+
+def _spread(r: np.ndarray, var: np.ndarray, n_par: int) -> float:
+    """Reduced chi-square of residuals ``r`` with variances ``var`` (1 if too few)."""
+    dof = len(r) - n_par
+    return float(np.sum(r * r / var) / dof) if dof > 0 else 1.0
