@@ -36,6 +36,7 @@ Examples
 
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
@@ -121,7 +122,7 @@ def detect_template(
     h = probe.at_rate(fs, what=what)
     if len(x) < 3:
         return _empty(fs)
-    mf = MatchedFilter(h, block=block)
+    mf, self_resp = _filter(probe, fs, block, look)
     c = mf.correlate(x)
     env = np.abs(c)
     noise = max(noise_level(env), NOISE_FLOOR_REL * float(env.max()))
@@ -148,7 +149,7 @@ def detect_template(
             k_noise=k_noise,
             rel_threshold=rel_threshold,
             k_detect=k_detect,
-            self_response=mf.self_response,
+            self_response=self_resp,
         )
         if pk is None:  # cannot happen for a peak above k_detect * noise; kept for safety
             continue
@@ -161,6 +162,21 @@ def detect_template(
     return Arrivals(
         onset, fs, a[:, 1], a[:, 2], np.minimum(a[:, 3], 1.0), onset[:, None].copy(), "template"
     )
+
+
+@functools.lru_cache(maxsize=8)
+def _filter(probe: Probe, fs: float, block: int, look: int) -> tuple[MatchedFilter, np.ndarray]:
+    """The probe's matched filter at ``fs`` and its self response cut to the search's reach.
+
+    Cached per probe (by identity) and rate: the channels of a recording share one filter.
+    Only lags within ``look`` (plus a margin) of a path are ever compared with its side
+    lobes, so the self response is cut there (a 1 s sweep's is two seconds long).
+    """
+    mf = MatchedFilter(probe.at_rate(fs), block=block)
+    sr = mf.self_response
+    mid = len(sr) // 2
+    w = min(mid, look + 256)
+    return mf, np.ascontiguousarray(sr[mid - w : mid + w + 1])
 
 
 def _local_maxima(env: np.ndarray) -> np.ndarray:

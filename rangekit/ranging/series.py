@@ -123,12 +123,17 @@ class ExchangeRanges:
         failure ``distance_m`` and ``sigma_m`` are NaN and ``flags`` is ``("detection",)``.
     error : str or None
         What went wrong on a detection failure (beeps found per recording), else None.
+    arrivals : tuple of Arrivals or None
+        The beeps given to :func:`~rangekit.ranging.beepbeep.range_beepbeep`, one
+        Arrivals per recording (device order), onsets as sample indices of the whole
+        file; None on a detection failure. Used by :mod:`rangekit.ranging.clock`.
     """
 
     exchange: int
     t_s: float
     ranges: tuple[Range, ...]
     error: str | None = None
+    arrivals: tuple[Arrivals, ...] | None = None
 
     def rows(self) -> list[dict]:
         """One dict per pair with the keys of ``SERIES_FIELDS["beepbeep"]`` (NaN -> None)."""
@@ -447,13 +452,14 @@ def _beepbeep_series(
                     )
                     yield ExchangeRanges(count, t0, ranges, err)
                 else:
+                    taken = tuple(arrivals[i].take(m) for i, m in enumerate(members))
                     res = range_beepbeep(
-                        [arrivals[i].take(m) for i, m in enumerate(members)],
+                        taken,
                         speed_m_s=c,
                         self_distance_m=self_distance_m,
                         clock_ppm=clock_ppm,
                     )
-                    yield ExchangeRanges(count, t0, res.ranges)
+                    yield ExchangeRanges(count, t0, res.ranges, arrivals=taken)
                 count += 1
             if progress is not None:
                 progress(core1 / fs0, n0 / fs0)

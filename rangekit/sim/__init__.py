@@ -1,5 +1,6 @@
 """Simulation: rendered recordings with their ground truth."""
 
+from rangekit.sim.exchanges import render_exchanges
 from rangekit.sim.recording import Device, SimResult, pair_devices, render_beepbeep
 from rangekit.sim.room import ShoeboxRoom, image_sources
 
@@ -10,4 +11,5 @@ __all__ = [
     "image_sources",
     "pair_devices",
     "render_beepbeep",
+    "render_exchanges",
 ]
