@@ -357,3 +357,37 @@ def clock_ppm_option(help: str):
         show_default=True,
         help=help,
     )
+
+
+TEMPLATE_HELP = (
+    "The probe signal that was played (a mono WAV/FLAC, e.g. from `rangekit design sweep`), "
+    "instead of the built-in beep; matched filtering with first-path selection; resampled "
+    "to each recording's rate."
+)
+
+
+def template_option(f):
+    """--template FILE (``template``): the probe that was played, None for the beep."""
+    return click.option(
+        "--template",
+        "template",
+        type=click.Path(),
+        default=None,
+        metavar="FILE",
+        help=TEMPLATE_HELP,
+    )(f)
+
+
+def load_template(path: str | None):
+    """The probe in the file ``path`` of :func:`template_option`, or None without one.
+
+    Returns a :class:`~rangekit.signals.probe.Probe` (sample 0 = the emission's start,
+    trailing silence dropped; :func:`~rangekit.signals.probe.read_probe`). Errors are the
+    library's, one line naming the file: missing or unreadable (exit 3), not audio,
+    multichannel or silent (exit 4).
+    """
+    if path is None:
+        return None
+    from rangekit.signals.probe import read_probe
+
+    return read_probe(path)

@@ -15,9 +15,11 @@ from rangekit_cli._options import (
     self_distance_option,
     speed_of_sound_option,
     temperature_option,
+    template_option,
     ultrasonic_kwargs,
     ultrasonic_options,
 )
+from rangekit_cli.range_cmd import calibration_option
 
 #: Exit codes of ``rangekit batch`` beyond the common ones (docs/cli.md).
 EXIT_SOME_FAILED = 8
@@ -95,6 +97,8 @@ def _one_thread_per_worker() -> None:
 @speed_of_sound_option("Speed of sound in m/s (overrides --temperature and sidecar temperatures).")
 @clock_ppm_option("beepbeep: 1-sigma sample-clock tolerance per device, ppm (widens sigma_m only).")
 @detector_option
+@template_option
+@calibration_option
 @beep_options
 @ultrasonic_options
 @click.option(
@@ -117,6 +121,8 @@ def batch_cmd(
     speed,
     clock_ppm,
     detector,
+    template,
+    calibration,
     quiet,
     **kw,
 ):
@@ -176,6 +182,7 @@ def batch_cmd(
         s: ultrasonic_kwargs(kw if s == scheme else {}, scheme=s, temp_c=temp_c, speed=speed)
         for s in ("oneway", "echo")
     }
+    _probe_and_calibration(template, calibration, scheme, sd, kw, beepbeep, ultra)
     options = BatchOptions(scheme=scheme, beepbeep=beepbeep, pair_by_name=pair_by_name, **ultra)
     if pair_by_name:
         sessions = pair_sessions_by_name(list(inputs))
@@ -230,3 +237,24 @@ def batch_cmd(
         )
     if summary.failed:
         click.get_current_context().exit(EXIT_ALL_FAILED if summary.ok == 0 else EXIT_SOME_FAILED)
+
+
+def _probe_and_calibration(template, calibration, scheme, sd, kw, beepbeep, ultra) -> None:
+    """Put ``--template`` and ``--calibration`` into the sessions' ranging options."""
+    from rangekit_cli._options import load_template
+    from rangekit_cli.range_cmd import _read_calibration, _refuse_self_distance
+
+    probe = load_template(template)
+    if probe is not None:
+        beepbeep["probe"] = probe
+        for s in ("oneway", "echo"):
+            ultra[s]["probe"] = probe
+            if s != scheme or kw.get("channels") is None:
+                ultra[s]["channels"] = None  # a lab's probe: any number of receivers
+    cal = _read_calibration(calibration, scheme)
+    if cal is not None:
+        if scheme == "beepbeep":
+            _refuse_self_distance(sd)
+            beepbeep["calibration"] = cal
+        else:
+            ultra[scheme]["calibration"] = cal

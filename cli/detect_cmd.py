@@ -1,4 +1,4 @@
-"""``rangekit detect``: every channel's beep onsets, for checking what a range came from."""
+"""``rangekit detect``: every channel's beep (or probe) onsets, to check what a range came from."""
 
 from __future__ import annotations
 
@@ -9,39 +9,79 @@ from rangekit_cli._options import (
     detector_option,
     emit,
     format_option,
+    load_template,
     make_beep,
     output_option,
+    template_option,
 )
+
+#: The beep options, by parameter name, for the usage error with --template.
+_BEEP_OPTIONS = {
+    "f_hz": "--freq",
+    "n_bursts": "--bursts",
+    "spacing": "--spacing",
+    "burst_len": "--burst-len",
+    "taper": "--taper",
+    "beep_fs": "--beep-fs",
+}
 
 
 @click.command("detect")
 @click.argument("files", nargs=-1, required=True, type=click.Path(dir_okay=True))
 @detector_option
+@template_option
 @beep_options
 @format_option
 @output_option
 @debug_option
-def detect_cmd(files, detector, fmt, output, **beep_kw):
-    """Beep onsets in every channel of every FILE.
+def detect_cmd(files, detector, template, fmt, output, **beep_kw):
+    """Beep onsets (or --template probe onsets) in every channel of every FILE.
 
     Prints one row per beep found: file, channel, beep index, onset (float sample index
     from sample 0, and seconds), its 1-sigma in samples, SNR and confidence (fraction of
     bursts whose timing fits the burst spacing). Exit code 6 if a channel holds no beep.
+
+    With --template the rows are the arrivals of that probe (first path of each,
+    strongest arrivals at least the probe's length apart; confidence is the first
+    path's height over the arrival's strongest peak) and the detector is 'template'.
+
+    \b
+    Examples:
+      rangekit detect recording.wav
+      rangekit detect --template sweep.wav --format csv dev1.wav dev2.wav
     """
     from rangekit.detect import detect
+    from rangekit.detect.template import detect_template
     from rangekit.io.audio import read_audio
     from rangekit.io.results import arrivals_rows, format_arrivals
 
-    beep = make_beep(beep_kw)
+    ctx = click.get_current_context()
+    if template is not None:
+        if ctx.get_parameter_source("detector") != click.core.ParameterSource.DEFAULT:
+            raise click.UsageError(
+                "--detector applies to the built-in beep; --template uses the matched filter"
+            )
+        for key, opt in _BEEP_OPTIONS.items():
+            if beep_kw.get(key) is not None:
+                raise click.UsageError(f"{opt} describes the built-in beep; drop it or --template")
+    probe = load_template(template)
+    beep = None if probe is not None else make_beep(beep_kw)
     rows, empty = [], []
     for f in files:
         x, fs = read_audio(f)
         for ch in range(x.shape[1]):
-            arr = detect(x[:, ch], fs=fs, beep=beep, detector=detector)
+            if probe is None:
+                arr = detect(x[:, ch], fs=fs, beep=beep, detector=detector)
+            else:
+                arr = detect_template(x[:, ch], fs=fs, probe=probe, what=f"'{f}'")
             if len(arr) == 0:
                 empty.append(f"{f}#{ch}")
             rows += arrivals_rows(arr, file=str(f), channel=ch)
-    emit(format_arrivals(rows, fmt, meta={"detector": detector}), output)
+    meta = (
+        {"detector": detector} if probe is None else {"detector": "template", "template": template}
+    )
+    emit(format_arrivals(rows, fmt, meta=meta), output)
     if empty:
-        click.echo(f"rangekit: error: no beep found in {', '.join(empty)}", err=True)
+        what = "no beep" if probe is None else f"no arrival of '{template}'"
+        click.echo(f"rangekit: error: {what} found in {', '.join(empty)}", err=True)
         raise SystemExit(6)

@@ -32,6 +32,7 @@ class RangekitGroup(click.Group):
         "experiment": ("rangekit_cli.experiment_cmd", "experiment_cmd"),
         "plot": ("rangekit_cli.plot_cmd", "plot"),
         "batch": ("rangekit_cli.batch_cmd", "batch_cmd"),
+        "calibrate": ("rangekit_cli.calibrate_cmd", "calibrate_cmd"),
     }
 
     def list_commands(self, ctx):

@@ -17,8 +17,19 @@ from rangekit_cli._options import (
     self_distance_option,
     speed_of_sound_option,
     temperature_option,
+    template_option,
     ultrasonic_kwargs,
     ultrasonic_options,
+)
+
+calibration_option = click.option(
+    "--calibration",
+    type=click.Path(dir_okay=False),
+    default=None,
+    metavar="CAL.json",
+    help="Apply a calibration from `rangekit calibrate` (beepbeep, oneway): its offset "
+    "replaces --self-distance (--latency for oneway), its fitted speed of sound, if any, "
+    "replaces --temperature.",
 )
 
 
@@ -39,6 +50,8 @@ from rangekit_cli._options import (
 @speed_of_sound_option()
 @clock_ppm_option("1-sigma sample-clock tolerance per device, ppm (widens sigma_m only).")
 @detector_option
+@template_option
+@calibration_option
 @beep_options
 @ultrasonic_options
 @click.option(
@@ -73,6 +86,16 @@ from rangekit_cli._options import (
     help="--series beepbeep: allowance for the time of flight and for differing recording "
     "start times [0.1].",
 )
+@click.option(
+    "--clock-rate",
+    "clock_rate",
+    default=None,
+    metavar="estimate|off|PPM[,PPM...]",
+    help="--series beepbeep: correct the devices' sample-clock rates. estimate: from the "
+    "spacing of the exchanges, relative to device 0 (reported on stderr; the rows then come "
+    "at the end, after the whole recording); PPM,...: known rates, one per device (device 0 "
+    "first) or one per device after device 0; off: no correction [off].",
+)
 @format_option
 @output_option
 @debug_option
@@ -84,10 +107,13 @@ def range_cmd(
     speed,
     clock_ppm,
     detector,
+    template,
+    calibration,
     series,
     block_s,
     exchange_s,
     skew_s,
+    clock_rate,
     fmt,
     output,
     **kw,
@@ -120,22 +146,43 @@ def range_cmd(
       rangekit range --series --scheme echo srf02_log.wav --period 0.07 --format csv
     """
     if not series:
-        for opt, v in (("--block", block_s), ("--exchange", exchange_s), ("--skew", skew_s)):
+        only = (("--block", block_s), ("--exchange", exchange_s), ("--skew", skew_s))
+        for opt, v in (*only, ("--clock-rate", clock_rate)):
             if v is not None:
                 raise click.UsageError(f"{opt} applies to --series only")
     elif scheme != "beepbeep":
-        for opt, v in (("--exchange", exchange_s), ("--skew", skew_s)):
+        only = (("--exchange", exchange_s), ("--skew", skew_s), ("--clock-rate", clock_rate))
+        for opt, v in only:
             if v is not None:
                 raise click.UsageError(f"{opt} applies to --series with --scheme beepbeep only")
     series_opts = {"block_s": block_s} if series else None
+    from rangekit_cli._options import load_template
+
+    probe = load_template(template)
+    cal = _read_calibration(calibration, scheme)
+    if series and scheme != "beepbeep" and (probe is not None or cal is not None):
+        raise click.UsageError(
+            "--template and --calibration apply to --series with --scheme beepbeep only"
+        )
+    if (
+        template is not None
+        and click.get_current_context().get_parameter_source("detector")
+        == click.core.ParameterSource.COMMANDLINE
+    ):
+        raise click.UsageError(
+            "--detector applies to the built-in beep; --template uses the matched filter"
+        )
     if scheme != "beepbeep":
-        _range_ultrasonic(files, scheme, temp_c, speed, fmt, output, kw, series_opts)
+        extra = {"probe": probe, "calibration": cal}
+        _range_ultrasonic(files, scheme, temp_c, speed, fmt, output, kw, series_opts, extra)
         return
     from rangekit.io.results import format_ranges
     from rangekit.ranging import range_files
 
     _refuse_ultrasonic_options(kw)
     sd = float_list(self_distance, name="--self-distance", lo=0.0, hi=2.0)
+    if cal is not None:
+        _refuse_self_distance(sd)
     beep = make_beep(kw)
     if series:
         from rangekit.physics import speed_of_sound_m_s
@@ -154,6 +201,7 @@ def range_cmd(
             skew_s=DEFAULT_SKEW_S if skew_s is None else skew_s,
             block_s=block_s,
             progress=sink.progress,
+            probe=probe,
         )
         c = speed_of_sound_m_s(temp_c) if speed is None else speed
         meta = {
@@ -163,6 +211,16 @@ def range_cmd(
             "files": [str(f) for f in files],
             "speed_of_sound_m_s": c,
         }
+        if probe is not None:
+            meta["detector"] = "template"
+            meta["template"] = probe.name
+        if clock_rate is not None:
+            items = _clock_rate(sink, items, clock_rate, meta, c=c, sd=sd, clock_ppm=clock_ppm)
+        if cal is not None:
+            from dataclasses import replace
+
+            meta["calibration"] = {"file": str(calibration), "model": cal.model}
+            items = (replace(e, ranges=cal.apply_ranges(e.ranges, speed_m_s=c)) for e in items)
         sink.run(items, meta)
         return
     result = range_files(
@@ -174,9 +232,52 @@ def range_cmd(
         speed_m_s=speed,
         self_distance_m=sd[0] if len(sd) == 1 else sd,
         clock_ppm=clock_ppm,
+        probe=probe,
+        calibration=cal,
     )
-    meta = {"scheme": scheme, "detector": detector, "files": [str(f) for f in files]}
+    meta = {
+        "scheme": scheme,
+        "detector": "template" if probe is not None else detector,
+        "files": [str(f) for f in files],
+    }
+    if probe is not None:
+        meta["template"] = probe.name
+    if cal is not None:
+        meta["calibration"] = {"file": str(calibration), "model": cal.model}
     emit(format_ranges(result, fmt, meta=meta), output)
+
+
+def _clock_rate(sink, items, text: str, meta: dict, *, c, sd, clock_ppm):
+    """``--clock-rate``: collect the series, estimate or take the rates, correct, report."""
+    from rangekit.ranging.clock import correct_series_clock
+
+    mode = text.strip().lower()
+    if mode == "off":
+        return items
+    ppm = None if mode == "estimate" else float_list(text, name="--clock-rate", lo=-1e4, hi=1e4)
+    explicit = click.get_current_context().get_parameter_source("clock_ppm")
+    try:
+        fixed, rates = correct_series_clock(
+            items,
+            speed_m_s=c,
+            self_distance_m=sd[0] if len(sd) == 1 else sd,
+            ppm=ppm,
+            clock_ppm=clock_ppm if explicit == click.core.ParameterSource.COMMANDLINE else None,
+        )
+    finally:
+        if sink._bar is not None:
+            sink._bar.close()
+    meta["clock_rate"] = {"mode": "estimate" if ppm is None else "given", **rates.as_dict()}
+    if ppm is None:
+        rej = f", {rates.n_rejected} rejected" if rates.n_rejected else ""
+        for i in range(1, len(rates.ppm)):
+            click.echo(
+                f"rangekit: clock rate vs device 0: device {i} {rates.ppm[i]:+.1f} +- "
+                f"{rates.sigma_ppm[i]:.1f} ppm ({rates.n_exchanges} exchanges over "
+                f"{rates.span_s:.1f} s{rej})",
+                err=True,
+            )
+    return iter(fixed)
 
 
 _ULTRASONIC_KEYS = (
@@ -200,12 +301,34 @@ def _refuse_ultrasonic_options(kw: dict) -> None:
             raise click.UsageError(f"{opt} applies to --scheme oneway and echo only")
 
 
-def _range_ultrasonic(files, scheme, temp_c, speed, fmt, output, kw, series_opts):
+def _refuse_self_distance(sd) -> None:
+    if any(v != 0 for v in sd):
+        raise click.UsageError(
+            "give --self-distance or --calibration, not both: the calibration's offset "
+            "already holds the speaker-to-microphone distances"
+        )
+
+
+def _read_calibration(path, scheme: str):
+    """The calibration of ``--calibration`` (None without it), checked against the scheme."""
+    if path is None:
+        return None
+    from rangekit.ranging.calibration import read_calibration
+
+    cal = read_calibration(path)
+    if cal.scheme != scheme:
+        raise click.UsageError(f"'{path}' is a calibration for --scheme {cal.scheme}, not {scheme}")
+    return cal
+
+
+def _range_ultrasonic(files, scheme, temp_c, speed, fmt, output, kw, series_opts, extra):
     from rangekit.ranging.ultrasonic import format_tof, range_ultrasonic_files
 
+    any_channels = extra["probe"] is not None and kw.get("channels") is None
     args = ultrasonic_kwargs(kw, scheme=scheme, temp_c=temp_c, speed=speed)
     burst = args.pop("burst")
-    channels = args.pop("channels")
+    channels = None if any_channels else args.pop("channels")
+    args.pop("channels", None)
     if series_opts is not None:
         from rangekit.ranging.series import range_series_ultrasonic
 
@@ -225,8 +348,12 @@ def _range_ultrasonic(files, scheme, temp_c, speed, fmt, output, kw, series_opts
         )
         sink.run(items, {"scheme": scheme, "series": True, "files": [str(files[0])]})
         return
-    rows = range_ultrasonic_files(files, scheme=scheme, channels=channels, burst=burst, **args)
+    rows = range_ultrasonic_files(
+        files, scheme=scheme, channels=channels, burst=burst, **extra, **args
+    )
     meta = {"scheme": scheme, "files": [str(f) for f in files]}
+    if extra["probe"] is not None:
+        meta["template"] = extra["probe"].name
     emit(format_tof(rows, fmt, scheme=scheme, meta=meta), output)
 
 

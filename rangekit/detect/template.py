@@ -7,10 +7,12 @@ given :class:`~rangekit.signals.probe.Probe` in a channel:
    resampling when the rates differ, an error when its band does not fit).
 2. **Analytic matched filter** (:class:`rangekit.detect.matched.MatchedFilter`,
    overlap-save): the envelope ``|c|`` of the correlation with the analytic template.
-3. **Arrivals**: local maxima of the envelope above ``k_detect`` times the noise's
-   Rayleigh scale, taken strongest first; a peak within ``min_separation_s`` of a stronger
-   accepted one belongs to that arrival (its reverberation or side lobes). With
-   ``expected`` only the ``expected`` strongest arrivals are kept.
+3. **Arrivals**: local maxima of the envelope above ``max(k_detect, sqrt(2 ln(n /
+   FALSE_ALARM)))`` times the noise's Rayleigh scale (``n`` samples of noise alone give
+   a false arrival with probability <= ``FALSE_ALARM`` = 1e-3), taken strongest first;
+   a peak within ``min_separation_s`` of a stronger accepted one belongs to that arrival
+   (its reverberation or side lobes). With ``expected`` only the ``expected`` strongest
+   arrivals are kept.
 4. **First path** (:func:`rangekit.detect.matched.first_path`): within ``lookback_s``
    before each arrival's strongest peak, the earliest peak above ``max(k_noise * noise,
    rel_threshold * strongest)`` that is not a side lobe of the strongest path. A sweep's
@@ -57,11 +59,14 @@ from rangekit.signals.probe import Probe
 from rangekit.signals.spectrum import rms_bandwidth_hz
 from rangekit.types import Arrivals
 
-__all__ = ["DEFAULT_LOOKBACK_S", "detect_template"]
+__all__ = ["DEFAULT_LOOKBACK_S", "FALSE_ALARM", "detect_template"]
 
 #: Default time before an arrival's strongest peak searched for an earlier direct path, s
 #: (20 ms: a reflection up to 6.9 m longer than the direct path).
 DEFAULT_LOOKBACK_S = 0.020
+#: Probability that a recording of noise alone yields an arrival (sets the detection
+#: threshold together with the recording's length; see :func:`detect_template`).
+FALSE_ALARM = 1e-3
 
 
 def detect_template(
@@ -127,7 +132,11 @@ def detect_template(
     env = np.abs(c)
     noise = max(noise_level(env), NOISE_FLOOR_REL * float(env.max()))
     peaks = _local_maxima(env)
-    peaks = peaks[env[peaks] > k_detect * noise]
+    # The noise envelope is Rayleigh: P(|c| > k noise) = exp(-k^2 / 2) per sample, so over
+    # n samples a peak beyond sqrt(2 ln(n / FALSE_ALARM)) noise levels is a false alarm
+    # with probability <= FALSE_ALARM (k_detect = 4.5 alone gives several per second).
+    k_rec = max(k_detect, math.sqrt(2.0 * math.log(len(x) / FALSE_ALARM)))
+    peaks = peaks[env[peaks] > k_rec * noise]
     if len(peaks) == 0:
         return _empty(fs)
     order = peaks[np.argsort(-env[peaks], kind="stable")]
@@ -143,7 +152,7 @@ def detect_template(
     for q in taken:
         pk = first_path(
             c,
-            lo=q - look,
+            lo=q - max(look, 1),  # first_path needs 3 lags; lookback_s=0 is legal
             hi=q + 2,
             noise=noise,
             k_noise=k_noise,

@@ -67,6 +67,7 @@ __all__ = [
     "Calibration",
     "Measurement",
     "fit_calibration",
+    "measure_recordings",
     "read_calibration",
 ]
 
@@ -184,18 +185,26 @@ class Calibration:
 
     def apply(self, result: RangeResult) -> RangeResult:
         """The two-way ``result`` (ranged with zero self-distances) with this calibration."""
+        ranges = self.apply_ranges(result.ranges, speed_m_s=result.speed_m_s)
+        c = self.speed_m_s if self.model == "offset+speed" else result.speed_m_s
+        return replace(result, ranges=ranges, speed_m_s=c)
+
+    def apply_ranges(self, ranges: Sequence[Range], *, speed_m_s: float) -> tuple[Range, ...]:
+        """Two-way ``ranges`` computed at ``speed_m_s`` with zero self-distances, calibrated.
+
+        Ranges without a distance (NaN: a failed detection) pass unchanged.
+        """
         self.check_scheme("beepbeep")
-        c0 = result.speed_m_s
-        ranges = []
-        for r in result.ranges:
+        c0 = speed_m_s
+        out = []
+        for r in ranges:
             if not math.isfinite(r.distance_m):
-                ranges.append(r)
+                out.append(r)
                 continue
             d, s = self.distance(r.distance_m / c0, r.sigma_m / c0, speed_m_s=c0)
             flags = tuple(f for f in r.flags if f != "negative") + (("negative",) if d < 0 else ())
-            ranges.append(Range(r.a, r.b, d, s, flags))
-        c = self.speed_m_s if self.model == "offset+speed" else c0
-        return replace(result, ranges=tuple(ranges), speed_m_s=c)
+            out.append(Range(r.a, r.b, d, s, flags))
+        return tuple(out)
 
     def to_dict(self) -> dict:
         """Plain-JSON form (what :meth:`write` stores)."""
@@ -434,3 +443,79 @@ def _spread(r: np.ndarray, var: np.ndarray, n_par: int) -> float:
     """Reduced chi-square of residuals ``r`` with variances ``var`` (1 if too few)."""
     dof = len(r) - n_par
     return float(np.sum(r * r / var) / dof) if dof > 0 else 1.0
+
+
+def measure_recordings(
+    recordings: Sequence[tuple[Sequence[str | os.PathLike], float]],
+    *,
+    scheme: str,
+    probe=None,
+    beep=None,
+    detector: str = "changepoint",
+    speed_m_s: float,
+    **oneway_kw,
+) -> list[Measurement]:
+    """The calibration measurements of recordings at known distances.
+
+    Parameters
+    ----------
+    recordings : sequence of (paths, distance_m)
+        Each recording with its known distance. Two-way: one file with the two devices'
+        channels, or the two devices' mono files (device 0 first). One-way: one file; every
+        (window, channel) with an arrival is one measurement.
+    scheme : {"beepbeep", "oneway"}
+        The ranging scheme.
+    probe : Probe, optional
+        The signal played, if not the built-in beep (two-way) or burst (one-way).
+    beep, detector
+        Two-way without a probe: the beep and its detector.
+    speed_m_s : float
+        The speed of sound the times are converted with (only to undo the conversion).
+    **oneway_kw
+        One-way: keyword arguments of
+        :func:`rangekit.ranging.ultrasonic.range_ultrasonic_files` (``burst``,
+        ``period_s``, ``channels``, ...); ``latency_s`` must not be among them.
+
+    Raises
+    ------
+    IncompatibleInputError
+        A two-way recording does not hold exactly two devices.
+    DetectionError
+        Nothing was detected in a recording (its name is in the message).
+    """
+    from rangekit.errors import IncompatibleInputError
+    from rangekit.io.audio import load_devices
+    from rangekit.ranging.pipeline import range_channels
+    from rangekit.ranging.ultrasonic import range_ultrasonic_files
+
+    if scheme not in CALIBRATION_SCHEMES:
+        raise InvalidParameterError(f"scheme={scheme!r} must be one of {CALIBRATION_SCHEMES}")
+    c = V.in_range("speed_m_s", speed_m_s, 100.0, 2000.0)
+    out: list[Measurement] = []
+    for paths, dist in recordings:
+        paths = [os.fspath(p) for p in paths]
+        name = "+".join(paths)
+        if scheme == "beepbeep":
+            chans = load_devices(paths, min_devices=2)
+            if len(chans) != 2:
+                raise IncompatibleInputError(
+                    f"'{name}' holds {len(chans)} devices; a calibration is for one pair of "
+                    "devices (give a 2-channel file or two mono files)"
+                )
+            res = range_channels(
+                chans, beep=beep, detector=detector, speed_m_s=c, clock_ppm=0.0, probe=probe
+            )
+            r = res.ranges[0]
+            out.append(Measurement(name, float(dist), r.distance_m / c, r.sigma_m / c))
+            continue
+        if len(paths) != 1:
+            raise IncompatibleInputError(f"'{name}': a one-way recording is one file")
+        rows = range_ultrasonic_files(
+            paths, scheme="oneway", probe=probe, speed_m_s=c, latency_s=0.0, **oneway_kw
+        )
+        for r in rows:
+            if r["arrival_s"] is None:
+                continue
+            src = f"{name} (window {r['window']}, channel {r['channel']})"
+            out.append(Measurement(src, float(dist), r["arrival_s"], r["sigma_m"] / c))
+    return out

@@ -57,6 +57,7 @@ import numpy as np
 
 from rangekit import _validate as V
 from rangekit.detect import DETECTORS, detect
+from rangekit.detect.template import detect_template
 from rangekit.errors import DetectionError, IncompatibleInputError, InvalidParameterError
 from rangekit.physics import DEFAULT_TEMP_C, speed_of_sound_m_s
 from rangekit.ranging.beepbeep import (
@@ -67,6 +68,7 @@ from rangekit.ranging.beepbeep import (
 )
 from rangekit.ranging.ultrasonic import ULTRASONIC_SCHEMES, ToF
 from rangekit.signals.beep import Beep, check_beep_fits
+from rangekit.signals.probe import Probe
 from rangekit.types import Arrivals, Range
 
 __all__ = [
@@ -179,7 +181,7 @@ class WindowRanges:
         return out
 
 
-def default_exchange_s(beep: Beep, n_devices: int) -> float:
+def default_exchange_s(beep: Beep | Probe, n_devices: int) -> float:
     """Default longest exchange: ``(n_devices - 1) * (beep duration + 0.5 s)``.
 
     The time from device 0's beep to the last device's beep when each device starts its
@@ -213,7 +215,9 @@ class _Source:
     devices: tuple[int, ...]  # device index of each channel of the file
 
 
-def _open_sources(paths: Sequence[str | os.PathLike], beep: Beep) -> list[_Source]:
+def _open_sources(
+    paths: Sequence[str | os.PathLike], beep: Beep, probe: Probe | None = None
+) -> list[_Source]:
     """Open the inputs like :func:`rangekit.io.audio.load_devices` (same checks)."""
     from rangekit.io.audio import open_audio
 
@@ -252,7 +256,10 @@ def _open_sources(paths: Sequence[str | os.PathLike], beep: Beep) -> list[_Sourc
     ]
     try:
         for s in out:
-            check_beep_fits(beep, fs=s.fs, what=f"'{s.path}'")
+            if probe is not None:
+                probe.check_fits(s.fs, what=f"'{s.path}'")
+            else:
+                check_beep_fits(beep, fs=s.fs, what=f"'{s.path}'")
     except Exception:
         for s in out:
             s.f.close()
@@ -311,6 +318,7 @@ def range_series_beepbeep(
     skew_s: float = DEFAULT_SKEW_S,
     block_s: float | None = None,
     progress: ProgressFn | None = None,
+    probe: Probe | None = None,
 ) -> Iterator[ExchangeRanges]:
     """Two-way ranges of every exchange in long recordings, block by block.
 
@@ -335,6 +343,10 @@ def range_series_beepbeep(
     progress : callable, optional
         Called after each block as ``progress(done_s, total_s)``: seconds of device 0's
         recording finished so far, and its length.
+    probe : Probe, optional
+        The signal the devices played if not the beep (a sweep, a lab's own file):
+        arrivals by :func:`rangekit.detect.template.detect_template`; its duration takes
+        the beep's in the defaults above.
 
     Yields
     ------
@@ -388,24 +400,37 @@ def range_series_beepbeep(
         skew_s=skew_s,
         block_s=block_s,
         progress=progress,
+        probe=probe,
     )
 
 
 def _beepbeep_series(
-    paths, *, beep, detector, c, self_distance_m, clock_ppm, exchange_s, skew_s, block_s, progress
+    paths,
+    *,
+    beep,
+    detector,
+    c,
+    self_distance_m,
+    clock_ppm,
+    exchange_s,
+    skew_s,
+    block_s,
+    progress,
+    probe=None,
 ) -> Iterator[ExchangeRanges]:
     from rangekit.io.audio import read_frames
 
-    sources = _open_sources(paths, beep)
+    sources = _open_sources(paths, beep, probe)
+    signal = beep if probe is None else probe  # what was played: its duration
     try:
         n = sum(len(s.devices) for s in sources)
         self_distances(self_distance_m, n)
-        ex_s = default_exchange_s(beep, n) if exchange_s is None else exchange_s
+        ex_s = default_exchange_s(signal, n) if exchange_s is None else exchange_s
         src0 = sources[0]
         fs0, n0 = src0.fs, src0.frames
         step = max(1, int(round(_block_s(block_s, fs=fs0, n_channels=n) * fs0)))
-        pre_s = skew_s + beep.duration_s
-        post_s = ex_s + skew_s + beep.duration_s + _TAIL_S
+        pre_s = skew_s + signal.duration_s
+        post_s = ex_s + skew_s + signal.duration_s + _TAIL_S
         pairs = [(a, b) for a in range(n) for b in range(a + 1, n)]
         after_s = -math.inf
         count = 0
@@ -421,9 +446,14 @@ def _beepbeep_series(
                 for col, dev in enumerate(s.devices):
                     names[dev] = _device_name(s, col)
                     if len(x) == 0:
-                        arrivals[dev] = Arrivals.empty(fs=s.fs, n_bursts=beep.n_bursts)
+                        arrivals[dev] = Arrivals.empty(
+                            fs=s.fs, n_bursts=1 if probe else beep.n_bursts
+                        )
                         continue
-                    a = detect(x[:, col], fs=s.fs, beep=beep, detector=detector)
+                    if probe is None:
+                        a = detect(x[:, col], fs=s.fs, beep=beep, detector=detector)
+                    else:
+                        a = detect_template(x[:, col], fs=s.fs, probe=probe, what=f"'{names[dev]}'")
                     a = a.take(np.argsort(a.onset, kind="stable"))
                     arrivals[dev] = _shift(a, r0)
                 del x

@@ -1,0 +1,176 @@
+"""``rangekit calibrate``: offset (and speed of sound) from recordings at known distances."""
+
+from __future__ import annotations
+
+import click
+from rangekit_cli._options import (
+    FiniteRange,
+    beep_options,
+    debug_option,
+    detector_option,
+    make_beep,
+    speed_of_sound_option,
+    temperature_option,
+    template_option,
+    ultrasonic_kwargs,
+    ultrasonic_options,
+)
+
+
+def parse_recording(text: str, default_m: float | None) -> tuple[list[str], float]:
+    """``PATH[+PATH][@M]`` -> (paths, distance); an existing path is never split."""
+    from pathlib import Path
+
+    dist = default_m
+    spec = text
+    if not Path(text).exists() and "@" in text:
+        head, tail = text.rsplit("@", 1)
+        try:
+            dist = float(tail)
+        except ValueError:
+            raise click.BadParameter(
+                f"{text!r}: the distance after '@' must be a number of metres"
+            ) from None
+        if not (0.0 < dist < 1e4):
+            raise click.BadParameter(f"{text!r}: the distance must be positive, in metres")
+        spec = head
+    paths = [spec] if Path(spec).exists() else spec.split("+")
+    if dist is None:
+        raise click.UsageError(f"no distance for {text!r}: give --distance M or write it as FILE@M")
+    return paths, dist
+
+
+@click.command("calibrate")
+@click.argument("recordings", nargs=-1, required=True, metavar="RECORDING...")
+@click.option(
+    "--distance",
+    type=FiniteRange(1e-3, 1e4),
+    default=None,
+    metavar="M",
+    help="Known distance in metres of every RECORDING that does not give its own as FILE@M.",
+)
+@click.option(
+    "--scheme",
+    type=click.Choice(["beepbeep", "oneway"]),
+    default="beepbeep",
+    show_default=True,
+    help="beepbeep: each RECORDING is one exchange of two devices (a 2-channel file, or "
+    "dev0.wav+dev1.wav); oneway: each RECORDING is one file whose sample 0 is the trigger.",
+)
+@template_option
+@click.option(
+    "--fit-speed/--no-fit-speed",
+    "fit_speed",
+    default=None,
+    help="Fit the effective speed of sound too [when the recordings are at two or more "
+    "distinct distances].",
+)
+@click.option(
+    "--tolerance",
+    type=FiniteRange(0.0, 1.0),
+    default=0.005,
+    show_default=True,
+    metavar="M",
+    help="1-sigma of the known distances (how well the devices were placed), m.",
+)
+@temperature_option
+@speed_of_sound_option()
+@detector_option
+@beep_options
+@ultrasonic_options
+@click.option(
+    "-o",
+    "--output",
+    required=True,
+    type=click.Path(dir_okay=False),
+    metavar="CAL.json",
+    help="Where to write the calibration (JSON; written only when the fit is accepted).",
+)
+@debug_option
+def calibrate_cmd(
+    recordings,
+    distance,
+    scheme,
+    template,
+    fit_speed,
+    tolerance,
+    temp_c,
+    speed,
+    detector,
+    output,
+    **kw,
+):
+    """Fit a device pair's (or link's) offset, and speed of sound, from known distances.
+
+    Model d = c tau + b (docs/calibration.md): tau is what the scheme measures (two-way:
+    half the difference of the two devices' intervals; one-way: the arrival time from the
+    trigger) and b the offset (two-way: the mean speaker-to-microphone distance, any
+    latency cancels; one-way: -c x the system latency). Recordings at ONE distance fit b
+    with c from --temperature; at two or more distances c is fitted too. Too few
+    recordings (fewer than 3, or 4 for the speed), or recordings that disagree with the
+    others beyond their uncertainty, are refused (exit 7) and named.
+
+    RECORDING is FILE, or dev0.wav+dev1.wav (two-way with one mono file per device), with
+    an optional @M giving its own distance in metres.
+
+    \b
+    Examples:
+      rangekit calibrate --template sweep.wav --distance 1.0 t1.wav t2.wav t3.wav -o cal.json
+      rangekit calibrate a.wav@0.5 b.wav@0.5 c.wav@2 d.wav@2 --template sweep.wav -o cal.json
+      rangekit calibrate --scheme oneway --template chirp.wav --distance 2 r*.wav -o cal.json
+      rangekit range --template sweep.wav --calibration cal.json exchange.wav
+    """
+    from rangekit_cli._options import load_template
+
+    from rangekit.physics import speed_of_sound_m_s
+    from rangekit.ranging.calibration import fit_calibration, measure_recordings
+
+    probe = load_template(template)
+    recs = [parse_recording(r, distance) for r in recordings]
+    c = speed_of_sound_m_s(temp_c) if speed is None else speed
+    if scheme == "beepbeep":
+        from rangekit_cli.range_cmd import _refuse_ultrasonic_options
+
+        _refuse_ultrasonic_options(kw)
+        beep = make_beep(kw)
+        meas = measure_recordings(
+            recs, scheme=scheme, probe=probe, beep=beep, detector=detector, speed_m_s=c
+        )
+    else:
+        if kw.get("latency") is not None:
+            raise click.UsageError("--latency is what a one-way calibration fits; leave it out")
+        args = ultrasonic_kwargs(kw, scheme=scheme, temp_c=temp_c, speed=speed)
+        if kw.get("channels") is None:
+            args["channels"] = None
+        args.pop("latency_s", None)
+        args.pop("temp_c", None)
+        args.pop("speed_m_s", None)
+        meas = measure_recordings(recs, scheme=scheme, probe=probe, speed_m_s=c, **args)
+    cal = fit_calibration(
+        meas,
+        scheme=scheme,
+        speed_m_s=c,
+        fit_speed=fit_speed,
+        tolerance_m=tolerance,
+        probe=None if probe is None else probe.name,
+    )
+    cal.write(output)
+    click.echo(summary(cal))
+
+
+def summary(cal) -> str:
+    """Human summary of a calibration (what ``calibrate`` prints)."""
+    dists = ", ".join(f"{d:g}" for d in cal.distances_m)
+    lines = [
+        f"calibration: {cal.scheme}, model {cal.model}, {cal.n_recordings} measurements at "
+        f"{dists} m",
+        f"  offset_m     {cal.offset_m:+.5f} +- {cal.sigma_offset_m:.5f}",
+    ]
+    if cal.scheme == "oneway":
+        lines.append(f"  latency_s    {cal.latency_s:+.7f} +- {cal.sigma_latency_s:.7f}")
+    if cal.model == "offset+speed":
+        lines.append(f"  speed_m_s    {cal.speed_m_s:.2f} +- {cal.sigma_speed_m_s:.2f}")
+    else:
+        lines.append(f"  speed_m_s    {cal.speed_m_s:.2f} (from the temperature; not fitted)")
+    lines.append(f"  rms residual {cal.rms_residual_m * 1e3:.2f} mm")
+    return "\n".join(lines)
