@@ -180,3 +180,42 @@ def test_batch_with_template_and_calibration(scene):
         assert abs(got - truth[name]) < 0.01
     r = run(["batch", tmp / "t.wav", "-o", tmp / "b2.csv", *args, "--self-distance", 0.1])
     assert_error(r, 2, "--self-distance", "calibration")
+
+
+def test_oneway_calibrate_then_range(tmp_path):
+    """One-way with an unknown latency: calibrate at 1 m, range at 3 m within 1 cm."""
+    rng = np.random.default_rng(5)
+    probe = linear_sweep(17000.0, 20000.0, 0.1)
+    sweep = tmp_path / "sweep.wav"
+    write_audio(sweep, probe.samples, fs=probe.fs)
+    latency = 0.0123
+
+    def rec(name, d):
+        centre = np.array([3.5, 2.5, 1.3]) + rng.uniform(-0.2, 0.2, 3)
+        half = np.array([d / 2, 0.0, 0.0])
+        a, b = centre - half, centre + half
+        devs = [
+            Device(speaker_m=a, mic_m=a + np.array([0.0, 0.0, 0.05])),
+            Device(speaker_m=b, mic_m=b),
+        ]
+        sim = render_exchanges(
+            devs, source=probe.samples, source_fs=probe.fs, room=ROOM, lead_s=latency,
+            gap_s=0.3, rng=rng,
+        )  # fmt: skip
+        write_audio(tmp_path / f"{name}.wav", sim.recordings[1], fs=44100.0)
+        return float(np.linalg.norm(devs[0].speaker_m - devs[1].mic_m))
+
+    truth = {n: rec(n, d) for n, d in (("c1", 1.0), ("c2", 1.0), ("c3", 1.0), ("t", 3.0))}
+    recs = [f"{tmp_path / (n + '.wav')}@{truth[n]:.6f}" for n in ("c1", "c2", "c3")]
+    cal = tmp_path / "ow.json"
+    args = ["calibrate", "--scheme", "oneway", "--template", sweep, *recs, "--no-fit-speed"]
+    r = ok(run([*args, "-o", cal]))
+    assert "latency_s" in r.output
+    got = json.loads(cal.read_text())
+    assert got["scheme"] == "oneway" and abs(got["latency_s"] - latency) < 3e-5
+    rng_args = ["range", "--scheme", "oneway", "--template", sweep, "--calibration", cal]
+    r = ok(run([*rng_args, tmp_path / "t.wav", "--format", "json"]))
+    d = json.loads(r.output)["ranges"][0]["distance_m"]
+    assert abs(d - truth["t"]) < 0.01
+    r = run([*args, "--latency", 0.01, "-o", tmp_path / "x.json"])
+    assert_error(r, 2, "--latency")
