@@ -95,7 +95,7 @@ from rangekit.errors import IncompatibleInputError, InvalidParameterError
 from rangekit.physics import speed_of_sound_m_s
 from rangekit.sim._fracdelay import interp_bandlimited
 from rangekit.sim.noise import make_noise
-from rangekit.sim.recording import Device, SimResult
+from rangekit.sim.recording import Device, SimResult, pair_truth, room_truth
 from rangekit.sim.room import ShoeboxRoom, image_sources
 
 __all__ = ["render_exchanges"]
@@ -392,12 +392,7 @@ def render_exchanges(
                 "onsets": onsets[0, i].tolist(),
             }
         )
-    pairs = []
-    for a in range(n_dev):
-        for b in range(a + 1, n_dev):
-            dab = np.linalg.norm(devices[a].speaker_m - devices[b].mic_m)
-            dba = np.linalg.norm(devices[b].speaker_m - devices[a].mic_m)
-            pairs.append({"a": a, "b": b, "distance_m": float(0.5 * (dab + dba))})
+    pairs = pair_truth(devices)
     truth = {
         "scheme": "beepbeep",
         "temp_c": float(temp_c),
@@ -410,13 +405,7 @@ def render_exchanges(
             "duration_s": duration_s,
             "power": src_power,
         },
-        "room": None
-        if room is None
-        else {
-            "size_m": list(room.size_m),
-            "absorption": room.absorption,
-            "max_order": room.max_order,
-        },
+        "room": room_truth(room),
         "n_exchanges": n_exchanges,
         "period_s": period_s,
         "gap_s": gaps.tolist(),

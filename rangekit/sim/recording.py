@@ -288,12 +288,7 @@ def render_beepbeep(
                 "onsets": [float(o) for o in onsets],
             }
         )
-    pairs = []
-    for a in range(n_dev):
-        for b in range(a + 1, n_dev):
-            dab = np.linalg.norm(devices[a].speaker_m - devices[b].mic_m)
-            dba = np.linalg.norm(devices[b].speaker_m - devices[a].mic_m)
-            pairs.append({"a": a, "b": b, "distance_m": float(0.5 * (dab + dba))})
+    pairs = pair_truth(devices)
     truth = {
         "scheme": "beepbeep",
         "temp_c": float(temp_c),
@@ -301,17 +296,29 @@ def render_beepbeep(
         "snr_db": None if snr_db is None else float(snr_db),
         "noise": noise,
         "beep": _signal_truth(beep),
-        "room": None
-        if room is None
-        else {
-            "size_m": list(room.size_m),
-            "absorption": room.absorption,
-            "max_order": room.max_order,
-        },
+        "room": room_truth(room),
         "devices": truth_dev,
         "pairs": pairs,
     }
     return SimResult(recordings, [d.fs for d in devices], truth)
+
+
+def pair_truth(devices: Sequence[Device]) -> list[dict]:
+    """Each pair's true two-way distance: the mean of the two cross speaker-to-mic distances."""
+    pairs = []
+    for a in range(len(devices)):
+        for b in range(a + 1, len(devices)):
+            dab = np.linalg.norm(devices[a].speaker_m - devices[b].mic_m)
+            dba = np.linalg.norm(devices[b].speaker_m - devices[a].mic_m)
+            pairs.append({"a": a, "b": b, "distance_m": float(0.5 * (dab + dba))})
+    return pairs
+
+
+def room_truth(room: ShoeboxRoom | None) -> dict | None:
+    """The room's description in the truth sidecar (None for free field)."""
+    if room is None:
+        return None
+    return {"size_m": list(room.size_m), "absorption": room.absorption, "max_order": room.max_order}
 
 
 def _signal_truth(beep: Beep | Probe) -> dict:
