@@ -327,8 +327,9 @@ def _range_ultrasonic(files, scheme, temp_c, speed, fmt, output, kw, series_opts
     any_channels = extra["probe"] is not None and kw.get("channels") is None
     args = ultrasonic_kwargs(kw, scheme=scheme, temp_c=temp_c, speed=speed)
     burst = args.pop("burst")
-    channels = None if any_channels else args.pop("channels")
-    args.pop("channels", None)
+    channels = args.pop("channels")
+    if any_channels:
+        channels = None  # a lab's probe: any number of receivers unless --channels says
     if series_opts is not None:
         from rangekit.ranging.series import range_series_ultrasonic
 

@@ -124,10 +124,10 @@ def detect_template(
     sep = max(1, int(round(V.positive("min_separation_s", sep_s) * fs)))
     look = int(round(V.positive("lookback_s", lookback_s, allow_zero=True) * fs))
     look = min(look, sep // 2)
-    h = probe.at_rate(fs, what=what)
+    probe.check_fits(fs, what=what)
     if len(x) < 3:
         return _empty(fs)
-    mf, self_resp = _filter(probe, fs, block, look)
+    mf, self_resp, beta = _filter(probe, fs, block, look)
     c = mf.correlate(x)
     env = np.abs(c)
     noise = max(noise_level(env), NOISE_FLOOR_REL * float(env.max()))
@@ -147,7 +147,6 @@ def detect_template(
             if expected is not None and len(taken) == expected:
                 break
     taken.sort()
-    beta = rms_bandwidth_hz(h, fs=fs)
     rows = []
     for q in taken:
         pk = first_path(
@@ -174,8 +173,11 @@ def detect_template(
 
 
 @functools.lru_cache(maxsize=8)
-def _filter(probe: Probe, fs: float, block: int, look: int) -> tuple[MatchedFilter, np.ndarray]:
-    """The probe's matched filter at ``fs`` and its self response cut to the search's reach.
+def _filter(
+    probe: Probe, fs: float, block: int, look: int
+) -> tuple[MatchedFilter, np.ndarray, float]:
+    """The probe's matched filter at ``fs``, its self response cut to the search's reach,
+    and the template's RMS bandwidth (Hz, for the Cramér–Rao 1-sigma).
 
     Cached per probe (by identity) and rate: the channels of a recording share one filter.
     Only lags within ``look`` (plus a margin) of a path are ever compared with its side
@@ -185,7 +187,8 @@ def _filter(probe: Probe, fs: float, block: int, look: int) -> tuple[MatchedFilt
     sr = mf.self_response
     mid = len(sr) // 2
     w = min(mid, look + 256)
-    return mf, np.ascontiguousarray(sr[mid - w : mid + w + 1])
+    beta = rms_bandwidth_hz(mf.template, fs=fs)
+    return mf, np.ascontiguousarray(sr[mid - w : mid + w + 1]), beta
 
 
 def _local_maxima(env: np.ndarray) -> np.ndarray:

@@ -47,7 +47,6 @@ Examples
 
 from __future__ import annotations
 
-import json
 import math
 import os
 from collections.abc import Sequence
@@ -215,14 +214,9 @@ class Calibration:
 
     def write(self, path: str | os.PathLike) -> None:
         """Write the calibration as JSON, atomically (a temporary file renamed over it)."""
-        from pathlib import Path
+        from rangekit.io.sidecar import write_json
 
-        p = Path(path)
-        if not p.parent.exists():
-            raise InputFileError(f"cannot write '{p}': folder '{p.parent}' does not exist")
-        tmp = p.with_name(f".{p.name}.part")
-        tmp.write_text(json.dumps(self.to_dict(), indent=2) + "\n", encoding="utf-8")
-        os.replace(tmp, p)
+        write_json(path, self.to_dict())
 
 
 def read_calibration(path: str | os.PathLike) -> Calibration:
@@ -235,15 +229,10 @@ def read_calibration(path: str | os.PathLike) -> Calibration:
     """
     from pathlib import Path
 
+    from rangekit.io.sidecar import read_json
+
     p = Path(path)
-    try:
-        obj = json.loads(p.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise InputFileError(f"cannot open '{p}': no such file") from None
-    except (OSError, UnicodeDecodeError) as e:
-        raise InputFileError(f"cannot read '{p}': {e}") from None
-    except json.JSONDecodeError as e:
-        raise InputFileError(f"'{p}' is not JSON (line {e.lineno}: {e.msg})") from None
+    obj = read_json(p)
     if not isinstance(obj, dict) or obj.get("format") != FORMAT:
         raise InputFileError(
             f'\'{p}\' is not a rangekit calibration (no "format": "{FORMAT}"; write one '

@@ -30,6 +30,7 @@ True
 
 from __future__ import annotations
 
+import functools
 import math
 import os
 from dataclasses import dataclass
@@ -103,6 +104,16 @@ class Probe:
         >>> bool(900 < lo < 1000 < hi < 1100)
         True
         """
+        if energy == BAND_ENERGY:
+            return self._band
+        return self._band_of(energy)
+
+    @functools.cached_property
+    def _band(self) -> tuple[float, float]:
+        # Every at_rate / check_fits asks for it: one spectrum per probe.
+        return self._band_of(BAND_ENERGY)
+
+    def _band_of(self, energy: float) -> tuple[float, float]:
         from rangekit.signals.spectrum import power_spectrum
 
         V.in_range("energy", energy, 0.5, 1.0)

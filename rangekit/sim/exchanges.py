@@ -95,7 +95,7 @@ from rangekit.errors import IncompatibleInputError, InvalidParameterError
 from rangekit.physics import speed_of_sound_m_s
 from rangekit.sim._fracdelay import interp_bandlimited
 from rangekit.sim.noise import make_noise
-from rangekit.sim.recording import Device, SimResult, pair_truth, room_truth
+from rangekit.sim.recording import Device, SimResult, device_truth, pair_truth, room_truth
 from rangekit.sim.room import ShoeboxRoom, image_sources
 
 __all__ = ["render_exchanges"]
@@ -380,18 +380,7 @@ def render_exchanges(
             x += sigma * make_noise(n_samp, kind=noise, rng=rng)
         scale = peak / float(np.max(np.abs(x)))
         recordings.append(x * scale)
-        truth_dev.append(
-            {
-                "speaker_m": di.speaker_m.tolist(),
-                "mic_m": di.mic_m.tolist(),
-                "self_distance_m": di.self_distance_m,
-                "rec_start_s": di.rec_start_s,
-                "play_s": float(play[0, i]),
-                "clock_ppm": di.clock_ppm,
-                "fs": di.fs,
-                "onsets": onsets[0, i].tolist(),
-            }
-        )
+        truth_dev.append(device_truth(di, play_s=float(play[0, i]), onsets=onsets[0, i]))
     pairs = pair_truth(devices)
     truth = {
         "scheme": "beepbeep",

@@ -276,18 +276,7 @@ def render_beepbeep(
             x += sigma * make_noise(n_samp, kind=noise, rng=rng)
         scale = peak / float(np.max(np.abs(x)))
         recordings.append(x * scale)
-        truth_dev.append(
-            {
-                "speaker_m": di.speaker_m.tolist(),
-                "mic_m": di.mic_m.tolist(),
-                "self_distance_m": di.self_distance_m,
-                "rec_start_s": di.rec_start_s,
-                "play_s": float(play[i]),
-                "clock_ppm": di.clock_ppm,
-                "fs": di.fs,
-                "onsets": [float(o) for o in onsets],
-            }
-        )
+        truth_dev.append(device_truth(di, play_s=float(play[i]), onsets=onsets))
     pairs = pair_truth(devices)
     truth = {
         "scheme": "beepbeep",
@@ -301,6 +290,20 @@ def render_beepbeep(
         "pairs": pairs,
     }
     return SimResult(recordings, [d.fs for d in devices], truth)
+
+
+def device_truth(d: Device, *, play_s: float, onsets: Sequence[float]) -> dict:
+    """One device's entry of the truth sidecar: geometry, clock, play time, true onsets."""
+    return {
+        "speaker_m": d.speaker_m.tolist(),
+        "mic_m": d.mic_m.tolist(),
+        "self_distance_m": d.self_distance_m,
+        "rec_start_s": d.rec_start_s,
+        "play_s": play_s,
+        "clock_ppm": d.clock_ppm,
+        "fs": d.fs,
+        "onsets": [float(o) for o in onsets],
+    }
 
 
 def pair_truth(devices: Sequence[Device]) -> list[dict]:
