@@ -15,7 +15,72 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-__all__ = ["Arrivals", "Range", "RangeResult", "RngLike"]
+__all__ = [
+    "ARRIVAL_FLAGS",
+    "INFO_FLAGS",
+    "Arrivals",
+    "Range",
+    "RangeResult",
+    "RngLike",
+    "flag_bit",
+    "flag_names",
+]
+
+#: Names of the per-arrival flag bits, lowest bit first (``Arrivals.flags``). A flag says
+#: why an arrival's onset may be worse than its ``sigma``:
+#:
+#: - ``clipped``: clipped samples lie in the stretch the onset was timed on (they are kept
+#:   out of the fit; the onset rests on fewer samples).
+#: - ``low_snr``: the arrival is close to the detection threshold.
+#: - ``ambiguous_first_path``: another path of comparable strength lies close before or
+#:   after the chosen one; the first path may have been missed or a reflection taken.
+#: - ``inconsistent_bursts``: the bursts of a multi-burst signal disagree beyond their
+#:   timing noise, or some are missing.
+#: - ``poor_match``: the received signal fits the expected one badly (wrong template,
+#:   wrong detector, distorted transducer).
+#: - ``reverb_limited``: the noise floor near the arrival is set by reverberation of an
+#:   earlier arrival, not by the background noise.
+#: - ``dc_or_lowband``: strong energy outside the signal's band (DC, hum, handling
+#:   noise) was removed before timing; harmless unless combined with other flags.
+ARRIVAL_FLAGS = (
+    "clipped",
+    "low_snr",
+    "ambiguous_first_path",
+    "inconsistent_bursts",
+    "poor_match",
+    "reverb_limited",
+    "dc_or_lowband",
+)
+
+#: Flags that are informational only: they never make a result doubtful on their own.
+INFO_FLAGS = frozenset({"dc_or_lowband"})
+
+
+def flag_bit(name: str) -> int:
+    """The bit of one arrival flag name (see :data:`ARRIVAL_FLAGS`).
+
+    Examples
+    --------
+    >>> flag_bit("clipped"), flag_bit("low_snr")
+    (1, 2)
+    """
+    try:
+        return 1 << ARRIVAL_FLAGS.index(name)
+    except ValueError:
+        raise ValueError(f"unknown arrival flag {name!r}") from None
+
+
+def flag_names(bits: int) -> tuple[str, ...]:
+    """The flag names set in ``bits``, in :data:`ARRIVAL_FLAGS` order.
+
+    Examples
+    --------
+    >>> flag_names(flag_bit("clipped") | flag_bit("poor_match"))
+    ('clipped', 'poor_match')
+    """
+    b = int(bits)
+    return tuple(n for i, n in enumerate(ARRIVAL_FLAGS) if b >> i & 1)
+
 
 #: What ``rng`` parameters accept (everything :func:`numpy.random.default_rng` does).
 RngLike = (
@@ -53,6 +118,9 @@ class Arrivals:
     window : ndarray of int, shape (n,), optional
         Index of the activation window each arrival was found in (matched-filter
         detection of windowed one-way recordings); None when the channel is one window.
+    flags : ndarray of int, shape (n,), optional
+        Bit set of :data:`ARRIVAL_FLAGS` per arrival (default all zero);
+        :meth:`flag_names` gives the names.
     """
 
     onset: np.ndarray
@@ -63,8 +131,13 @@ class Arrivals:
     burst_onsets: np.ndarray
     detector: str = ""
     window: np.ndarray | None = None
+    flags: np.ndarray | None = None
 
     def __post_init__(self) -> None:
+        if self.flags is None:
+            object.__setattr__(self, "flags", np.zeros(len(self.onset), dtype=np.int64))
+        elif len(self.flags) != len(self.onset):
+            raise ValueError("Arrivals.flags must have one entry per onset")
         n = len(self.onset)
         for name in ("sigma", "snr_db", "confidence"):
             if len(getattr(self, name)) != n:
@@ -105,7 +178,21 @@ class Arrivals:
             self.burst_onsets[idx],
             self.detector,
             None if self.window is None else self.window[idx],
+            self.flags[idx],
         )
+
+    def flag_names(self, i: int) -> tuple[str, ...]:
+        """Names of the flags of arrival ``i``."""
+        return flag_names(int(self.flags[i]))
+
+    def with_flags(self, flags: np.ndarray) -> Arrivals:
+        """A copy whose flags are ``flags`` (OR them with :attr:`flags` to add)."""
+        from dataclasses import replace
+
+        f = np.asarray(flags, dtype=np.int64)
+        if f.shape != (len(self),):
+            raise ValueError("flags must have one entry per onset")
+        return replace(self, flags=f)
 
 
 @dataclass(frozen=True)

@@ -1,0 +1,303 @@
+"""Conditioning of a recording before arrival timing: the steps real recordings need.
+
+Recordings that rangekit did not make carry what its simulator never renders: DC offsets,
+hum, handling noise and microphone drift far below the signal's band, speech or music
+outside it, clipped own arrivals, digital silence where a microphone opened late. Each
+step here removes or marks one of them, and each is tested on its own
+(``tests/detect/test_condition.py``).
+
+1. **Band-limiting** (:func:`bandpass_taps`, :func:`bandlimit`): a linear-phase FIR
+   band-pass (Kaiser window, odd length ``2 h + 1``) applied causally, then shifted by its
+   exact group delay of ``h`` samples, so the time origin does not move. It removes DC,
+   hum, low-frequency noise and out-of-band interference in one step. The pass band is
+   the signal's band plus a margin, flat to within the Kaiser ripple
+   (``10^(-atten_db/20)``), so the filtered arrival equals the arrival: the filter adds
+   energy before an onset only from the part of the signal's own spectrum that lies in
+   the transition bands (for the tapered beep, below -60 dB; see the onset-timing traps
+   in ``../shared/REFERENCES.md``: the danger is a filter *narrower* than the signal).
+2. **Clipped samples** (:func:`clip_mask`): runs of two or more samples at the
+   recording's extreme values (within ``rel_tol`` of the peak-to-peak range). Fits leave
+   them out (and, after band-limiting, every output sample whose filter support touches
+   one: :func:`dilate`), and the arrival is flagged ``clipped``.
+3. **Robust noise floor** (:func:`active_floor`): a percentile of a band-energy series
+   over the frames that hold signal at all, so digital silence (exact zeros) does not pull
+   the floor to zero, and per stretch of about a quarter second (:func:`local_floor`), so
+   automatic-gain steps and non-stationary noise set their own floor.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+
+import numpy as np
+
+from rangekit import _validate as V
+
+__all__ = [
+    "DEFAULT_ATTEN_DB",
+    "active_floor",
+    "bandlimit",
+    "bandpass_taps",
+    "clip_mask",
+    "dilate",
+    "local_floor",
+    "out_of_band_ratio",
+]
+
+#: Stop-band attenuation of the band-limiting FIR, dB (pass-band ripple 1e-3).
+DEFAULT_ATTEN_DB = 60.0
+
+
+@functools.lru_cache(maxsize=32)
+def bandpass_taps(
+    fs: float,
+    lo_hz: float,
+    hi_hz: float,
+    *,
+    transition_hz: float | None = None,
+    atten_db: float = DEFAULT_ATTEN_DB,
+) -> np.ndarray:
+    """Linear-phase band-pass FIR taps (odd length), flat over ``[lo_hz, hi_hz]``.
+
+    Parameters
+    ----------
+    fs : float
+        Sample rate in Hz.
+    lo_hz, hi_hz : float
+        Edges of the pass band (where the response is still 1 within the ripple). ``lo_hz``
+        of 0 makes a low-pass; ``hi_hz`` at or above Nyquist minus the transition makes a
+        high-pass.
+    transition_hz : float, optional
+        Width of each transition band (default: a quarter of the pass band, within
+        [300 Hz, 3 kHz] and at most the room the band leaves to 0 and Nyquist).
+    atten_db : float
+        Stop-band attenuation (default 60 dB).
+
+    Returns
+    -------
+    numpy.ndarray
+        Read-only taps; their group delay is ``(len - 1) // 2`` samples exactly.
+
+    Examples
+    --------
+    >>> h = bandpass_taps(44100.0, 14000.0, 18000.0)
+    >>> len(h) % 2, bool(abs(np.abs(np.fft.rfft(h, 8192))[int(16000 / 44100 * 8192)] - 1) < 1e-3)
+    (1, True)
+    """
+    from scipy.signal import firwin, kaiser_beta
+
+    fs = V.sample_rate(fs)
+    nyq = 0.5 * fs
+    lo = V.positive("lo_hz", lo_hz, allow_zero=True)
+    hi = V.positive("hi_hz", hi_hz)
+    if not lo < hi:
+        raise V.InvalidParameterError(f"lo_hz={lo_hz!r} must be below hi_hz={hi_hz!r}")
+    if transition_hz is None:
+        tw = min(3000.0, max(300.0, 0.25 * (hi - lo)))
+    else:
+        tw = V.positive("transition_hz", transition_hz)
+    high_pass_only = hi + tw >= nyq
+    low_pass_only = lo - tw <= 0.0
+    if low_pass_only and lo > 0.0:
+        tw = lo  # the lower transition may reach 0 Hz but not beyond
+        low_pass_only = False
+    if high_pass_only and hi < nyq:
+        tw_hi = nyq - hi
+    else:
+        tw_hi = tw
+    width = min(tw, tw_hi) if not (high_pass_only or low_pass_only) else tw
+    # Kaiser design: length from the attenuation and the narrowest transition.
+    n = int(math.ceil((atten_db - 7.95) / (14.36 * width / fs))) + 1
+    n = max(n | 1, 9)
+    beta = kaiser_beta(atten_db)
+    if lo <= 0.0 and high_pass_only:
+        h = np.zeros(n)
+        h[n // 2] = 1.0
+    elif lo <= 0.0:
+        h = firwin(n, hi + 0.5 * tw, window=("kaiser", beta), fs=fs)
+    elif high_pass_only:
+        h = firwin(n, lo - 0.5 * tw, window=("kaiser", beta), fs=fs, pass_zero=False)
+    else:
+        edges = [lo - 0.5 * tw, hi + 0.5 * tw_hi]
+        h = firwin(n, edges, window=("kaiser", beta), fs=fs, pass_zero=False)
+    h = np.ascontiguousarray(h, dtype=np.float64)
+    h.flags.writeable = False
+    return h
+
+
+def bandlimit(x: np.ndarray, taps: np.ndarray) -> np.ndarray:
+    """``x`` through the linear-phase FIR ``taps`` with its group delay removed.
+
+    Output sample ``n`` is ``sum_k taps[k] x[n + h - k]`` with ``h = (len(taps) - 1) //
+    2`` (samples outside ``x`` count as zero): the causal filter's output ``h`` samples
+    later, so a symmetric filter leaves every arrival at its place.
+
+    Examples
+    --------
+    >>> x = np.zeros(64); x[20] = 1.0
+    >>> y = bandlimit(x, np.array([0.25, 0.5, 0.25]))
+    >>> y[19:22].tolist()
+    [0.25, 0.5, 0.25]
+    """
+    from scipy.signal import oaconvolve
+
+    h = np.asarray(taps, dtype=np.float64)
+    if h.ndim != 1 or len(h) % 2 != 1:
+        raise V.InvalidParameterError(f"taps must be 1-D of odd length, got shape {h.shape}")
+    x = np.asarray(x, dtype=np.float64)
+    if len(x) == 0:
+        return x.copy()
+    if len(h) == 1:
+        return h[0] * x
+    half = (len(h) - 1) // 2
+    y = oaconvolve(x, h, mode="full") if len(x) > 4 * len(h) else np.convolve(x, h)
+    return np.ascontiguousarray(y[half : half + len(x)])
+
+
+def clip_mask(x: np.ndarray, *, rel_tol: float = 1e-4, min_run: int = 2) -> np.ndarray:
+    """Boolean mask of clipped samples: runs at the recording's extreme values.
+
+    A sample is clipped when it lies within ``rel_tol`` of the peak-to-peak range of the
+    maximum (or of the minimum) and belongs to a run of at least ``min_run`` consecutive
+    such samples: an unclipped tone or sweep, sampled above twice its frequency, does not
+    stay at its crest for two samples, a clipped one does. Each rail is tested on its
+    own (converters and limiters clip asymmetrically, DC shifts the rails).
+
+    Examples
+    --------
+    >>> t = np.arange(400) / 44100.0
+    >>> x = np.sin(2 * np.pi * 1000 * t)
+    >>> int(clip_mask(x).sum()), int(clip_mask(np.clip(x, -0.5, 0.5)).sum()) > 100
+    (0, True)
+    """
+    x = np.asarray(x, dtype=np.float64)
+    mask = np.zeros(len(x), dtype=bool)
+    if len(x) < min_run:
+        return mask
+    hi, lo = float(np.max(x)), float(np.min(x))
+    span = hi - lo
+    if span <= 0.0:
+        return mask
+    tol = rel_tol * span
+    for at_rail, rail in ((x >= hi - tol, hi), (x <= lo + tol, lo)):
+        if rail == 0.0:
+            continue  # digital silence at a rail is not clipping
+        mask |= _runs_at_least(at_rail, min_run)
+    return mask
+
+
+def _runs_at_least(m: np.ndarray, k: int) -> np.ndarray:
+    """Samples of ``m`` that lie in runs of ``True`` at least ``k`` long."""
+    if k <= 1:
+        return m.copy()
+    d = np.diff(np.concatenate(([0], m.astype(np.int8), [0])))
+    starts = np.flatnonzero(d == 1)
+    stops = np.flatnonzero(d == -1)
+    out = np.zeros(len(m), dtype=bool)
+    for s, e in zip(starts, stops):
+        if e - s >= k:
+            out[s:e] = True
+    return out
+
+
+def dilate(mask: np.ndarray, half: int) -> np.ndarray:
+    """``mask`` widened by ``half`` samples on each side (a filter's reach).
+
+    Examples
+    --------
+    >>> dilate(np.array([0, 0, 0, 1, 0, 0, 0], bool), 1).astype(int).tolist()
+    [0, 0, 1, 1, 1, 0, 0]
+    """
+    m = np.asarray(mask, dtype=bool)
+    if half <= 0 or not m.any():
+        return m.copy()
+    c = np.concatenate(([0], np.cumsum(m, dtype=np.int64)))
+    n = len(m)
+    i = np.arange(n)
+    return (c[np.minimum(i + half + 1, n)] - c[np.maximum(i - half, 0)]) > 0
+
+
+def active_floor(e: np.ndarray, *, q: float = 20.0, rel_zero: float = 1e-12) -> float:
+    """Mean noise level of a band-energy series, from frames that hold any signal.
+
+    The ``q``-th percentile of the frames above ``rel_zero`` times the largest, divided
+    by ``-ln(1 - q/100)``: the mean of an exponential variable (the law of one noise-only
+    DFT bin's energy) whose ``q``-th percentile that is. Frames of digital silence (exact
+    zeros, or rounding residue of them) are left out; with no such frames it equals the
+    plain estimate. Returns 0 for a silent series.
+
+    Examples
+    --------
+    >>> e = np.random.default_rng(0).exponential(2.0, 10000)
+    >>> round(active_floor(e), 1), round(active_floor(np.concatenate([np.zeros(30000), e])), 1)
+    (2.0, 2.0)
+    """
+    e = np.asarray(e, dtype=np.float64)
+    if len(e) == 0:
+        return 0.0
+    top = float(np.max(e))
+    if top <= 0.0:
+        return 0.0
+    live = e[e > rel_zero * top]
+    if len(live) == 0:
+        return 0.0
+    return float(np.percentile(live, q)) / -math.log(1.0 - q / 100.0)
+
+
+def local_floor(
+    e: np.ndarray, *, block: int, q: float = 20.0, min_live: float = 0.25
+) -> np.ndarray:
+    """Per-frame noise level: :func:`active_floor` of blocks of ``block`` frames.
+
+    Each block's level is assigned to its centre and linearly interpolated between
+    centres; a block with fewer than ``min_live`` of its frames holding signal (mostly
+    digital silence) takes the level of the whole series.
+
+    Examples
+    --------
+    >>> rng = np.random.default_rng(1)
+    >>> e = np.concatenate([rng.exponential(1.0, 4000), rng.exponential(16.0, 4000)])
+    >>> f = local_floor(e, block=1000)
+    >>> bool(0.8 < f[500] < 1.2), bool(13 < f[7500] < 20)
+    (True, True)
+    """
+    e = np.asarray(e, dtype=np.float64)
+    n = len(e)
+    whole = active_floor(e, q=q)
+    block = V.positive_int("block", block)
+    if n <= block:
+        return np.full(n, whole)
+    n_b = -(-n // block)
+    top = float(np.max(e)) if n else 0.0
+    centres, levels = [], []
+    for b in range(n_b):
+        seg = e[b * block : min(n, (b + 1) * block)]
+        live = seg[seg > 1e-12 * top]
+        if len(live) < max(8, min_live * len(seg)):
+            lvl = whole
+        else:
+            lvl = float(np.percentile(live, q)) / -math.log(1.0 - q / 100.0)
+        centres.append(b * block + 0.5 * (len(seg) - 1))
+        levels.append(lvl)
+    return np.interp(np.arange(n), centres, levels)
+
+
+def out_of_band_ratio(x: np.ndarray, taps: np.ndarray, y: np.ndarray | None = None) -> float:
+    """Energy of ``x`` removed by band-limiting over the energy kept (linear).
+
+    ``y`` is ``bandlimit(x, taps)`` when already computed. A ratio far above 1 means the
+    recording is dominated by DC, hum, low-frequency or out-of-band sound.
+
+    Examples
+    --------
+    >>> t = np.arange(4410) / 44100.0
+    >>> x = np.sin(2 * np.pi * 16000 * t) + 10 * np.sin(2 * np.pi * 100 * t)
+    >>> round(out_of_band_ratio(x, bandpass_taps(44100.0, 14000.0, 18000.0)))
+    100
+    """
+    x = np.asarray(x, dtype=np.float64)
+    y = bandlimit(x, taps) if y is None else y
+    kept = float(y @ y)
+    removed = float((x - y) @ (x - y))
+    return removed / kept if kept > 0 else (math.inf if removed > 0 else 0.0)
