@@ -30,21 +30,54 @@ Notes
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
+from scipy.ndimage import maximum_filter1d
 
 from rangekit import _validate as V
 from rangekit.detect._kernels import band_energy
-from rangekit.detect.refine import fit_edge
+from rangekit.detect.condition import (
+    active_floor,
+    bandlimit,
+    bandpass_taps,
+    clip_mask,
+    local_floor,
+    out_of_band_ratio,
+)
+from rangekit.detect.refine import (
+    EdgeFit,
+    _window,
+    edge_statistic,
+    first_peak,
+    fit_edge,
+    refine_onset,
+)
 from rangekit.signals.beep import Beep, check_beep_fits
-from rangekit.types import Arrivals
+from rangekit.types import Arrivals, flag_bit
 
-__all__ = ["BurstCandidates", "detect_changepoint", "find_bursts", "group_bursts"]
+__all__ = ["BurstCandidates", "beep_taps", "detect_changepoint", "drop_echoes", "find_bursts"]
 
 #: STFT window and hop in seconds (128 and 32 samples at 44.1 kHz).
 WIN_S = 128 / 44100
 HOP_S = 32 / 44100
+#: Smallest edge statistic of a burst that counts as found (see ``refine.fit_edge``).
+F_MIN = 15.0
+#: How far before a change point the direct path of a burst is searched, s (a direct
+#: path up to ~20 dB weaker than the reflections that make the energy cross its
+#: threshold; 4 ms = 1.4 m of extra path).
+LOOKBACK_S = 0.004
+#: Median burst SNR below which an arrival is flagged ``low_snr``, dB.
+LOW_SNR_DB = 10.0
+#: Length of the stretches with their own noise floor, s (automatic-gain steps, noise
+#: that changes, the reverberation of a loud beep).
+FLOOR_BLOCK_S = 0.25
+#: A local floor this many times the recording's quiet level (the 10th percentile of the
+#: stretches' floors) marks an arrival
+#: ``reverb_limited`` (6 dB).
+REVERB_FLOOR_RATIO = 4.0
+#: Out-of-band over in-band energy above which an arrival is flagged ``dc_or_lowband``.
+OOB_RATIO = 100.0
 
 
 @dataclass(frozen=True)
@@ -65,12 +98,24 @@ def _stft_params(fs: float, win_s: float, hop_s: float) -> tuple[int, int]:
 
 
 def _change_points(
-    e: np.ndarray, *, n_win: int, hop: int, threshold_db: float, rise_db: float, refractory: int
+    e: np.ndarray,
+    *,
+    n_win: int,
+    hop: int,
+    threshold_db: float,
+    rise_db: float,
+    floor: np.ndarray | None = None,
 ) -> np.ndarray:
-    """Frames where the band energy rises strongly above background and its recent level."""
+    """Frames where the band energy rises strongly above background and its recent level.
+
+    ``floor`` is the per-frame noise level (default: :func:`condition.active_floor` of
+    ``e``, one level for the whole series).
+    """
     if len(e) == 0:
         return np.zeros(0, dtype=np.int64)
-    floor = max(float(np.percentile(e, 20.0)) / -math.log(0.8), 1e-30)
+    if floor is None:
+        floor = np.full(len(e), active_floor(e))
+    floor = np.maximum(floor, 1e-30)
     gap = int(math.ceil(n_win / hop))
     nb = 8
     cs = np.concatenate(([0.0], np.cumsum(e)))
@@ -81,14 +126,165 @@ def _change_points(
     pre = np.where(cnt > 0, (cs[hi] - cs[lo]) / np.maximum(cnt, 1), floor)
     thr = np.maximum(floor * 10 ** (threshold_db / 10), pre * 10 ** (rise_db / 10))
     above = e > thr
-    starts = np.flatnonzero(above & ~np.concatenate(([False], above[:-1])))
-    keep = []
-    last = -(10**18)
-    for s in starts:
-        if s - last >= refractory:
-            keep.append(s)
-            last = s
-    return np.asarray(keep, dtype=np.int64)
+    return np.flatnonzero(above & ~np.concatenate(([False], above[:-1]))).astype(np.int64)
+
+
+@dataclass(frozen=True)
+class _Conditioner:
+    """Local conditioning of the stretches the edge fits read (see :mod:`.condition`).
+
+    Each fit reads a few hundred samples; band-limiting only those (plus the filter's
+    reach) costs far less than filtering the whole recording. A stretch holding clipped
+    samples is fitted on the raw samples instead, clipped ones left out and a constant and
+    slope fitted (band-limiting would smear each clipped sample over the filter's length).
+    """
+
+    x: np.ndarray
+    taps: np.ndarray | None
+    clipped: np.ndarray | None
+
+    @property
+    def f_scale(self) -> float:
+        """How much band-limiting inflates the edge statistic of noise: ``1 / sum(h^2)``.
+
+        The statistic assumes white noise; band-limited noise has ``sum(h^2) = 2 B / fs``
+        of the degrees of freedom in a window, so noise alone reaches that much higher
+        values (measured on band-limited white noise: the 99.9 and 99.99 % points are 3.0
+        and 3.3 times the raw ones, against ``1 / sum(h^2) = 4.0`` for the beep's filter).
+        """
+        return 1.0 if self.taps is None else 1.0 / float(self.taps @ self.taps)
+
+    def segment(self, a: int, b: int) -> tuple[np.ndarray, np.ndarray | None, bool, int]:
+        """``(samples, mask, raw, offset)`` for the stretch ``[a, b)`` of the recording."""
+        a, b = max(0, a), min(len(self.x), b)
+        if self.clipped is not None and np.any(self.clipped[a:b]):
+            return self.x[a:b], self.clipped[a:b], True, a
+        if self.taps is None:
+            return self.x[a:b], None, False, a
+        h = (len(self.taps) - 1) // 2
+        a0, b0 = max(0, a - h), min(len(self.x), b + h)
+        y = bandlimit(self.x[a0:b0], self.taps)
+        return y[a - a0 : a - a0 + (b - a)], None, False, a
+
+
+def beep_taps(beep: Beep, fs: float) -> np.ndarray:
+    """Band-limiting FIR for a beep: flat over ``f +- 2 edge bandwidths`` (within Nyquist)."""
+    half = 2.0 * beep.edge_bandwidth_hz
+    nyq = 0.5 * fs
+    lo = max(beep.f_hz - half, 0.1 * beep.f_hz)
+    hi = min(beep.f_hz + half, nyq - 0.02 * nyq)
+    tw = min(1500.0, 0.5 * lo, max(nyq - hi, 0.01 * nyq))
+    return bandpass_taps(fs, lo, hi, transition_hz=tw)
+
+
+def _fit_at(
+    cond: _Conditioner,
+    c: int,
+    *,
+    fs: float,
+    beep: Beep,
+    n_win: int,
+    hop: int,
+    background: bool,
+) -> tuple[EdgeFit | None, bool]:
+    """Edge fit of a burst whose change point is at sample ``c``.
+
+    The onset is searched in ``[c - n_win/2 - lookback, c + n_win + hop]``: the band
+    energy crosses its threshold where the burst is strong, which in a room can be after
+    reflections have built up on a weak direct path (``LOOKBACK_S`` earlier at most); the
+    edge fit's first-path rule then takes the earliest edge.
+    """
+    lo, hi = c - n_win // 2 - int(round(LOOKBACK_S * fs)), c + n_win + hop
+    margin = int(math.ceil(48 * fs / 44100.0 + beep.taper_s * fs)) + 8
+    seg, mask, raw, off = cond.segment(lo - margin, hi + margin)
+    fit = fit_edge(
+        seg,
+        fs=fs,
+        beep=beep,
+        lo=lo - off,
+        hi=hi - off,
+        background=background,
+        mask=mask,
+        dc=raw,
+    )
+    if fit is None:
+        return None, raw
+    return replace(fit, onset=fit.onset + off), raw and fit.n_masked > 0
+
+
+def _fit_beep(
+    cond: _Conditioner,
+    a: int,
+    *,
+    fs: float,
+    beep: Beep,
+    n_win: int,
+    hop: int,
+    background: bool,
+    min_bursts: int,
+) -> tuple[list[EdgeFit | None], list[bool]]:
+    """Edge fits of every burst of the beep starting near sample ``a``.
+
+    The first path is chosen once for the whole beep: each burst's edge statistic over
+    ``[-n_win/2 - lookback, n_win + hop]`` around its expected place ``a + k spacing`` is
+    widened by +-2 samples (clock rates, rounding of the spacing) and summed over the
+    bursts; the onset is the earliest local maximum of the sum that reaches a tenth of its
+    largest (:func:`rangekit.detect.refine.first_peak`). The direct path is at the same
+    place in every burst, while a reverberant "edge" (the decaying tail of an earlier
+    burst beating with a reflection) is at a random one, so the sum keeps the first and
+    washes out the second. Each burst is then refined near that place on its own; a burst
+    whose statistic there stays below ``F_MIN`` counts as missing.
+    """
+    spacing = beep.spacing_s * fs
+    look = int(round(LOOKBACK_S * fs))
+    u0, u1 = -(n_win // 2) - look, n_win + hop
+    width = u1 - u0 + 1
+    margin = int(math.ceil(48 * fs / 44100.0 + beep.taper_s * fs)) + 8
+    pre, post = _window(fs, beep, None, None)
+    segs, stats = [], []
+    joint = np.zeros(width)
+    for k in range(beep.n_bursts):
+        p = int(round(a + k * spacing))
+        seg, mask, raw, off = cond.segment(p + u0 - margin, p + u1 + margin)
+        lo = max(p + u0 - off, pre)
+        hi = min(p + u1 - off, len(seg) - post - 4)
+        f = np.zeros(width)
+        if hi >= lo:
+            fk = edge_statistic(
+                seg, fs=fs, beep=beep, lo=lo, hi=hi, background=background, mask=mask, dc=raw
+            )
+            j0 = lo + off - p - u0
+            f[j0 : j0 + len(fk)] = fk
+        segs.append((seg, mask, raw, off, p))
+        stats.append(f)
+        joint += maximum_filter1d(f, size=5, mode="constant")
+    fits: list[EdgeFit | None] = [None] * beep.n_bursts
+    clipped = [False] * beep.n_bursts
+    if not np.any(joint > 0):
+        return fits, clipped
+    f_min = F_MIN * cond.f_scale
+    u = first_peak(joint, 0.1, f_min * min_bursts)
+    if joint[u] < f_min * min_bursts:
+        return fits, clipped
+    for k, ((seg, mask, raw, off, p), f) in enumerate(zip(segs, stats, strict=True)):
+        j0, j1 = max(0, u - 2), min(width, u + 3)
+        j = j0 + int(np.argmax(f[j0:j1]))
+        if f[j] < (F_MIN if raw else f_min):
+            continue
+        fit = refine_onset(
+            seg,
+            fs=fs,
+            beep=beep,
+            a=p + u0 + j - off,
+            f_stat=float(f[j]),
+            background=background,
+            mask=mask,
+            dc=raw,
+        )
+        if fit is not None:
+            fits[k] = replace(fit, onset=fit.onset + off)
+            clipped[k] = raw and fit.n_masked > 0
+    return fits, clipped
 
 
 def find_bursts(
@@ -101,124 +297,156 @@ def find_bursts(
     threshold_db: float = 12.0,
     rise_db: float = 10.0,
     background: bool = False,
+    condition: bool = True,
 ) -> BurstCandidates:
     """Find and time every burst onset in ``x`` (no grouping into beeps)."""
     n_win, hop = _stft_params(fs, win_s, hop_s)
     e = band_energy(x, fs=fs, f_hz=np.array([beep.f_hz]), n_win=n_win, hop=hop)
-    refractory = max(1, int(beep.burst_s * fs / hop))
+    floor = _floor(e, fs=fs, hop=hop)
     frames = _change_points(
-        e, n_win=n_win, hop=hop, threshold_db=threshold_db, rise_db=rise_db, refractory=refractory
+        e, n_win=n_win, hop=hop, threshold_db=threshold_db, rise_db=rise_db, floor=floor
     )
+    cond = _conditioner(x, fs=fs, beep=beep, condition=condition)
     on, sg, snr = [], [], []
+    last = -math.inf
     for m in frames:
-        fit = fit_edge(
-            x,
-            fs=fs,
-            beep=beep,
-            lo=int(m) * hop - n_win // 2,
-            hi=int(m) * hop + n_win + hop,
-            background=background,
+        if m * hop - last < beep.burst_s * fs:
+            continue
+        fit, raw = _fit_at(
+            cond, int(m) * hop, fs=fs, beep=beep, n_win=n_win, hop=hop, background=background
         )
-        if fit is not None:
+        if fit is not None and fit.f_stat >= F_MIN * (1.0 if raw else cond.f_scale):
             on.append(fit.onset)
             sg.append(fit.sigma)
             snr.append(fit.snr_db)
+            last = m * hop
     return BurstCandidates(np.array(on), np.array(sg), np.array(snr), n_win, hop)
 
 
-def group_bursts(
-    cand: BurstCandidates, *, fs: float, beep: Beep, min_bursts: int | None = None
-) -> Arrivals:
-    """Group burst onsets into beeps using the known burst count and spacing."""
-    k_b = beep.n_bursts
-    min_bursts = k_b if min_bursts is None else V.positive_int("min_bursts", min_bursts)
-    if min_bursts > k_b:
-        raise V.InvalidParameterError(f"min_bursts={min_bursts} exceeds n_bursts={k_b}")
-    spacing = beep.spacing_s * fs
-    tol = 0.5 * cand.n_win + cand.hop
-    scale = fs / 44100.0
-    order = np.argsort(cand.onset)
-    t = cand.onset[order]
-    used = np.zeros(len(t), dtype=bool)
-    rows = []
-    for i in range(len(t)):
-        if used[i]:
-            continue
-        members = [i]
-        for k in range(1, k_b):
-            target = t[i] + k * spacing
-            j = int(np.searchsorted(t, target))
-            best = None
-            for jj in (j - 1, j):
-                if 0 <= jj < len(t) and not used[jj] and jj not in members:
-                    if abs(t[jj] - target) <= tol and (
-                        best is None or abs(t[jj] - target) < abs(t[best] - target)
-                    ):
-                        best = jj
-            members.append(best)
-        if sum(mm is not None for mm in members) < min_bursts:
-            continue
-        for mm in members:
-            if mm is not None:
-                used[mm] = True
-        rows.append(members)
+def _floor(e: np.ndarray, *, fs: float, hop: int) -> np.ndarray:
+    """Per-frame noise level of the band energy: :func:`condition.local_floor` over
+    stretches of ``FLOOR_BLOCK_S``."""
+    return local_floor(e, block=max(16, int(round(FLOOR_BLOCK_S * fs / hop))))
 
-    onset, sigma, snr, conf, bursts = [], [], [], [], []
-    for members in rows:
-        idx = [order[mm] if mm is not None else -1 for mm in members]
-        ks = np.array([k for k, j in enumerate(idx) if j >= 0])
-        js = np.array([j for j in idx if j >= 0])
-        est = cand.onset[js] - ks * spacing
-        # A failed fit reports an infinite sigma; it then weighs (almost) nothing.
-        sg = np.clip(np.nan_to_num(cand.sigma[js], nan=1e6, posinf=1e6), 1e-3, 1e6)
-        # Allowed scatter: timing noise, plus 200 ppm of clock-rate mismatch per spacing.
-        allow = 2.0 * scale + 4.0 * sg + 2e-4 * ks * spacing
-        # The centre is the weighted mean of the estimates that agree with the best-supported
-        # one; on a tie, the earliest such mean (a burst timed on a reflection is late).
-        close = np.abs(est[:, None] - est[None, :]) <= np.maximum(allow[:, None], allow[None, :])
-        support = close.sum(axis=1)
-        w_all = 1.0 / sg**2
-        means = (close * w_all[None, :]) @ est / (close @ w_all)
-        best = np.flatnonzero(support == support.max())
-        centre = float(np.min(means[best]))
-        ok = np.abs(est - centre) <= allow
-        if ok.sum() < min(2, k_b):
-            continue
-        wts = 1.0 / sg[ok] ** 2
-        t0 = float(np.sum(wts * est[ok]) / np.sum(wts))
-        s0 = 1.0 / math.sqrt(float(np.sum(wts)))
-        if ok.sum() > 1:
-            chi2 = float(np.sum(wts * (est[ok] - t0) ** 2)) / (ok.sum() - 1)
-            s0 *= math.sqrt(max(1.0, chi2))
-        row = np.full(k_b, np.nan)
-        row[ks[ok]] = cand.onset[js[ok]]
-        onset.append(t0)
-        sigma.append(s0)
-        snr.append(float(np.median(cand.snr_db[js[ok]])))
-        conf.append(ok.sum() / k_b)
-        bursts.append(row)
-    if not onset:
-        return Arrivals.empty(fs=fs, n_bursts=k_b, detector="changepoint")
-    arr = Arrivals(
-        np.array(onset),
-        float(fs),
-        np.array(sigma),
-        np.array(snr),
-        np.array(conf),
-        np.array(bursts),
-        "changepoint",
-    )
-    return drop_echoes(arr, duration=beep.duration_s * fs)
+
+def _conditioner(x: np.ndarray, *, fs: float, beep: Beep, condition: bool) -> _Conditioner:
+    if not condition:
+        return _Conditioner(x, None, None)
+    clipped = clip_mask(x)
+    return _Conditioner(x, beep_taps(beep, fs), clipped if clipped.any() else None)
+
+
+def _anchor(
+    c: int, e: np.ndarray, *, hop: int, n_win: int, spacing: float, beep: Beep, fs: float
+) -> int:
+    """Start of the beep that a burst onset near sample ``c`` belongs to.
+
+    A change point may be any burst of a beep (the first can be masked by noise or by the
+    reverberation of another beep). For each hypothesis "``c`` is burst j" every burst
+    place ``c + (k - j) spacing`` is scored by the rise of the band energy there: the
+    mean over the frames inside the burst over the mean over the frames just before it,
+    in dB, clipped to [0, 30]. The best total (the earliest hypothesis on a tie) gives the
+    beep start ``c - j spacing``. A rise, not a level: a loud beep's reverberation has
+    energy at the burst places of a faint beep that follows, but it does not rise there.
+    """
+    k_b = beep.n_bursts
+    if k_b == 1:
+        return c
+    cs = np.concatenate(([0.0], np.cumsum(e)))
+    n_e = len(e)
+    w = max(1, n_win // hop)
+    n_plat = max(1, int((beep.burst_s * fs - 2 * n_win) / hop))
+    scores = np.zeros(k_b)
+    for j in range(k_b):
+        tot = 0.0
+        for k in range(k_b):
+            f = int(round((c + (k - j) * spacing) / hop))
+            p0, p1 = f + w, f + w + n_plat
+            q0, q1 = f - w - 8, f - w
+            if q0 < 0 or p1 > n_e:
+                continue
+            plat = (cs[p1] - cs[p0]) / (p1 - p0)
+            pre = (cs[q1] - cs[q0]) / (q1 - q0)
+            if plat > 0:
+                tot += min(30.0, max(0.0, 10.0 * math.log10(plat / max(pre, 1e-300))))
+        scores[j] = tot
+    best_j = int(np.flatnonzero(scores >= scores.max() - 1e-9)[0])
+    return int(round(c - best_j * spacing))
+
+
+def _combine(
+    fits: list[EdgeFit | None],
+    clipped: list[bool],
+    *,
+    spacing: float,
+    scale: float,
+    min_bursts: int,
+) -> tuple[float, float, float, float, np.ndarray, int] | None:
+    """One beep onset from its bursts' fits, or None when too few of them agree.
+
+    Each found burst k gives an estimate of the beep onset, its onset minus k * spacing.
+    The centre is the weighted mean of the estimates agreeing with the best-supported one
+    (the earliest such mean on a tie: a burst timed on a reflection is late); bursts
+    further than their allowed scatter from it are rejected and the rest averaged with
+    inverse-variance weights, the 1-sigma scaled up by their reduced chi-square.
+
+    Returns ``(onset, sigma, snr_db, confidence, burst_onsets, flags)``.
+    """
+    k_b = len(fits)
+    ks = np.array([k for k, f in enumerate(fits) if f is not None])
+    if len(ks) < min_bursts:
+        return None
+    on = np.array([fits[k].onset for k in ks])
+    est = on - ks * spacing
+    # A failed fit reports an infinite sigma; it then weighs (almost) nothing.
+    raw_sg = np.array([fits[k].sigma for k in ks])
+    sg = np.clip(np.nan_to_num(raw_sg, nan=1e6, posinf=1e6), 1e-3, 1e6)
+    # Allowed scatter: timing noise, plus 200 ppm of clock-rate mismatch per spacing.
+    allow = 2.0 * scale + 4.0 * sg + 2e-4 * ks * spacing
+    close = np.abs(est[:, None] - est[None, :]) <= np.maximum(allow[:, None], allow[None, :])
+    support = close.sum(axis=1)
+    w_all = 1.0 / sg**2
+    means = (close * w_all[None, :]) @ est / (close @ w_all)
+    best = np.flatnonzero(support == support.max())
+    centre = float(np.min(means[best]))
+    ok = np.abs(est - centre) <= allow
+    if ok.sum() < min_bursts:
+        return None
+    wts = 1.0 / sg[ok] ** 2
+    t0 = float(np.sum(wts * est[ok]) / np.sum(wts))
+    s0 = 1.0 / math.sqrt(float(np.sum(wts)))
+    if ok.sum() > 1:
+        chi2 = float(np.sum(wts * (est[ok] - t0) ** 2)) / (ok.sum() - 1)
+        s0 *= math.sqrt(max(1.0, chi2))
+    row = np.full(k_b, np.nan)
+    row[ks[ok]] = on[ok]
+    snr = float(np.median([fits[k].snr_db for k in ks[ok]]))
+    flags = 0
+    if ok.sum() < k_b:
+        flags |= flag_bit("inconsistent_bursts")
+    if any(clipped[k] for k in ks[ok]):
+        flags |= flag_bit("clipped")
+    if snr < LOW_SNR_DB:
+        flags |= flag_bit("low_snr")
+    return t0, s0, snr, ok.sum() / k_b, row, flags
 
 
 def drop_echoes(arr: Arrivals, *, duration: float) -> Arrivals:
-    """Drop arrivals that start inside an earlier arrival (echoes of it)."""
-    order = np.argsort(arr.onset)
-    keep = []
+    """Drop arrivals that start inside an earlier arrival (echoes of it).
+
+    The earlier one stays, unless at most half of its bursts agree and the later one has
+    more: a group of a few bursts lying on reflections of a real beep's bursts, one or
+    more spacings before it, is not that beep's direct sound.
+    """
+    order = np.argsort(arr.onset, kind="stable")
+    keep: list[int] = []
     end = -math.inf
-    for i in order:
+    for i in order.tolist():
         if arr.onset[i] >= end:
             keep.append(i)
+            end = arr.onset[i] + duration
+        elif arr.confidence[keep[-1]] <= 0.5 < arr.confidence[i]:
+            keep[-1] = i
             end = arr.onset[i] + duration
     return arr.take(np.array(keep, dtype=np.int64))
 
@@ -234,6 +462,7 @@ def detect_changepoint(
     rise_db: float = 10.0,
     min_bursts: int | None = None,
     background: bool = False,
+    condition: bool = True,
 ) -> Arrivals:
     """Detect beep arrivals by STFT change points refined by an edge fit.
 
@@ -248,18 +477,26 @@ def detect_changepoint(
     win_s, hop_s : float
         STFT window and hop in seconds.
     threshold_db : float
-        Minimum band energy above the background for a burst start, in dB.
+        Minimum band energy above the local background for a burst start, in dB.
     rise_db : float
         Minimum rise over the band energy just before, in dB.
     min_bursts : int, optional
-        Bursts a beep needs (default: all of them). The first burst is always required.
+        Bursts whose timing must agree for a beep (default: half of them, at least 2;
+        1 for a one-burst beep). A beep with fewer agreeing than all is flagged
+        ``inconsistent_bursts``.
     background : bool
         Fit a background tone during the edge fit (reverberant rooms).
+    condition : bool
+        Condition the recording (default): band-limit the stretches the edge fits read to
+        the beep's band (DC, hum, speech and music removed), leave clipped samples out.
+        ``False`` fits the raw samples, as rangekit did before (for comparisons).
 
     Returns
     -------
     Arrivals
-        One entry per beep, in time order; empty for a silent recording.
+        One entry per beep, in time order; empty for a silent recording. ``flags`` per
+        arrival: ``inconsistent_bursts``, ``clipped``, ``low_snr``, ``reverb_limited``,
+        ``dc_or_lowband`` (see :data:`rangekit.types.ARRIVAL_FLAGS`).
 
     Examples
     --------
@@ -277,14 +514,69 @@ def detect_changepoint(
     fs = V.sample_rate(fs)
     x = V.signal_1d("x", x)
     check_beep_fits(beep, fs=fs)
-    cand = find_bursts(
-        x,
-        fs=fs,
-        beep=beep,
-        win_s=win_s,
-        hop_s=hop_s,
-        threshold_db=threshold_db,
-        rise_db=rise_db,
-        background=background,
+    k_b = beep.n_bursts
+    if min_bursts is None:
+        min_bursts = 1 if k_b == 1 else max(2, -(-k_b // 2))
+    min_bursts = V.positive_int("min_bursts", min_bursts)
+    if min_bursts > k_b:
+        raise V.InvalidParameterError(f"min_bursts={min_bursts} exceeds n_bursts={k_b}")
+    n_win, hop = _stft_params(fs, win_s, hop_s)
+    e = band_energy(x, fs=fs, f_hz=np.array([beep.f_hz]), n_win=n_win, hop=hop)
+    floor = _floor(e, fs=fs, hop=hop)
+    frames = _change_points(
+        e, n_win=n_win, hop=hop, threshold_db=threshold_db, rise_db=rise_db, floor=floor
     )
-    return group_bursts(cand, fs=fs, beep=beep, min_bursts=min_bursts)
+    spacing = beep.spacing_s * fs
+    anchors: list[int] = []
+    for m in frames.tolist():
+        a = _anchor(m * hop, e, hop=hop, n_win=n_win, spacing=spacing, beep=beep, fs=fs)
+        if all(abs(a - b) > n_win for b in anchors):
+            anchors.append(a)
+    cond = _conditioner(x, fs=fs, beep=beep, condition=condition)
+    live = floor[floor > 1e-12 * float(floor.max())] if len(floor) and floor.max() > 0 else floor
+    quiet = float(np.percentile(live, 10.0)) if len(live) else 0.0
+    oob = _out_of_band(x, cond) if condition else False
+    rows = []
+    for a in anchors:
+        fits, clipped = _fit_beep(
+            cond,
+            a,
+            fs=fs,
+            beep=beep,
+            n_win=n_win,
+            hop=hop,
+            background=background,
+            min_bursts=min_bursts,
+        )
+        res = _combine(fits, clipped, spacing=spacing, scale=fs / 44100.0, min_bursts=min_bursts)
+        if res is None:
+            continue
+        t0, s0, snr, conf, row, flags = res
+        fr = min(len(floor) - 1, max(0, int(t0 // hop)))
+        if quiet > 0 and floor[fr] > REVERB_FLOOR_RATIO * quiet:
+            flags |= flag_bit("reverb_limited")
+        if oob:
+            flags |= flag_bit("dc_or_lowband")
+        rows.append((t0, s0, snr, conf, row, flags))
+    if not rows:
+        return Arrivals.empty(fs=fs, n_bursts=k_b, detector="changepoint")
+    arr = Arrivals(
+        np.array([r[0] for r in rows]),
+        float(fs),
+        np.array([r[1] for r in rows]),
+        np.array([r[2] for r in rows]),
+        np.array([r[3] for r in rows]),
+        np.array([r[4] for r in rows]),
+        "changepoint",
+        flags=np.array([r[5] for r in rows], dtype=np.int64),
+    )
+    return drop_echoes(arr, duration=beep.duration_s * fs)
+
+
+def _out_of_band(x: np.ndarray, cond: _Conditioner) -> bool:
+    """Whether energy outside the beep's band dominates the recording (a sample of it)."""
+    if cond.taps is None or len(x) == 0:
+        return False
+    n = min(len(x), 1 << 16)
+    i0 = (len(x) - n) // 2
+    return out_of_band_ratio(x[i0 : i0 + n], cond.taps) > OOB_RATIO

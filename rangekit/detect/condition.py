@@ -195,7 +195,7 @@ def _runs_at_least(m: np.ndarray, k: int) -> np.ndarray:
     starts = np.flatnonzero(d == 1)
     stops = np.flatnonzero(d == -1)
     out = np.zeros(len(m), dtype=bool)
-    for s, e in zip(starts, stops):
+    for s, e in zip(starts, stops, strict=True):
         if e - s >= k:
             out[s:e] = True
     return out
@@ -218,19 +218,23 @@ def dilate(mask: np.ndarray, half: int) -> np.ndarray:
     return (c[np.minimum(i + half + 1, n)] - c[np.maximum(i - half, 0)]) > 0
 
 
-def active_floor(e: np.ndarray, *, q: float = 20.0, rel_zero: float = 1e-12) -> float:
+def active_floor(
+    e: np.ndarray, *, q: float = 20.0, rel_zero: float = 1e-12, min_live: float = 0.5
+) -> float:
     """Mean noise level of a band-energy series, from frames that hold any signal.
 
     The ``q``-th percentile of the frames above ``rel_zero`` times the largest, divided
     by ``-ln(1 - q/100)``: the mean of an exponential variable (the law of one noise-only
     DFT bin's energy) whose ``q``-th percentile that is. Frames of digital silence (exact
-    zeros, or rounding residue of them) are left out; with no such frames it equals the
+    zeros, or rounding residue of them) are left out when at least ``min_live`` of the
+    frames hold signal; otherwise the signal is what is rare (a noiseless render: zeros
+    with a beep in them) and every frame counts. With no silent frames it equals the
     plain estimate. Returns 0 for a silent series.
 
     Examples
     --------
     >>> e = np.random.default_rng(0).exponential(2.0, 10000)
-    >>> round(active_floor(e), 1), round(active_floor(np.concatenate([np.zeros(30000), e])), 1)
+    >>> round(active_floor(e), 1), round(active_floor(np.concatenate([np.zeros(9000), e])), 1)
     (2.0, 2.0)
     """
     e = np.asarray(e, dtype=np.float64)
@@ -240,8 +244,8 @@ def active_floor(e: np.ndarray, *, q: float = 20.0, rel_zero: float = 1e-12) -> 
     if top <= 0.0:
         return 0.0
     live = e[e > rel_zero * top]
-    if len(live) == 0:
-        return 0.0
+    if len(live) < min_live * len(e):
+        live = e
     return float(np.percentile(live, q)) / -math.log(1.0 - q / 100.0)
 
 

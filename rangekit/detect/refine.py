@@ -40,7 +40,7 @@ import numpy as np
 
 from rangekit.signals.beep import Beep, burst_envelope
 
-__all__ = ["EdgeFit", "fit_edge"]
+__all__ = ["EdgeFit", "edge_statistic", "first_peak", "fit_edge", "refine_onset"]
 
 
 @dataclass(frozen=True)
@@ -51,25 +51,36 @@ class EdgeFit:
     sigma: float
     snr_db: float
     amplitude: float
+    f_stat: float = math.inf
+    n_masked: int = 0
 
 
-def _basis_many(n: np.ndarray, taus, *, w: float, fs: float, beep: Beep, background: bool):
-    """Model columns for each onset in ``taus``: shape (T, L, 2) or (T, L, 4)."""
+def _basis_many(
+    n: np.ndarray, taus, *, w: float, fs: float, beep: Beep, background: bool, dc: bool = False
+):
+    """Model columns for each onset in ``taus``: shape (T, L, p), p = 2, 4 or 6.
+
+    Columns: the edge (``env * sin``, ``env * cos``), then the background tone (``sin``,
+    ``cos``) when ``background``, then a constant and a slope when ``dc``.
+    """
     taus = np.atleast_1d(np.asarray(taus, dtype=np.float64))
     env = burst_envelope((n[None, :] - taus[:, None]) / fs, beep=beep)  # (T, L)
     s, c = np.sin(w * n), np.cos(w * n)
     cols = [env * s, env * c]
     if background:
         cols += [np.broadcast_to(s, env.shape), np.broadcast_to(c, env.shape)]
+    if dc:
+        ramp = (n - n[0]) / max(float(n[-1] - n[0]), 1.0) - 0.5 if len(n) else n
+        cols += [np.ones(env.shape), np.broadcast_to(ramp, env.shape)]
     return np.stack(cols, axis=2)
 
 
 def _basis(n: np.ndarray, tau: float, **kw) -> np.ndarray:
-    """Model columns for one onset: shape (L, 2) or (L, 4)."""
+    """Model columns for one onset: shape (L, p)."""
     return _basis_many(n, tau, **kw)[0]
 
 
-def _first_peak(f: np.ndarray, frac: float, f_min: float) -> int:
+def first_peak(f: np.ndarray, frac: float, f_min: float) -> int:
     """Index of the earliest local maximum of ``f`` reaching ``frac * max(f)`` and ``f_min``."""
     top = float(np.max(f))
     ok = f >= max(frac * top, min(f_min, top))
@@ -105,6 +116,8 @@ def fit_edge(
     background: bool = False,
     first_path: float = 0.1,
     f_min: float = 15.0,
+    mask: np.ndarray | None = None,
+    dc: bool = False,
 ) -> EdgeFit | None:
     """Time a burst onset known to lie in samples [lo, hi] of ``x``.
 
@@ -129,33 +142,91 @@ def fit_edge(
     f_min : float
         Smallest F statistic taken as an edge (noise alone exceeds 15 with probability
         about e^-15 per offset).
+    mask : ndarray of bool, optional
+        Samples of ``x`` to leave out of the fit (clipped samples): stage 1 sees them as
+        zeros, stage 2 drops them from the least squares.
+    dc : bool
+        Also fit a constant and a slope (a recording that was not band-limited: DC offset
+        and low-frequency drift).
 
     Returns
     -------
     EdgeFit or None
-        None when the window does not fit in ``x``.
+        None when the window does not fit in ``x``. ``f_stat`` is the edge statistic at
+        the chosen onset (below ``f_min``: no edge was found, the fit is the best guess);
+        ``n_masked`` the samples of the stage-2 window left out.
     """
-    scale = fs / 44100.0
-    taper = beep.taper_s * fs
-    pre = int(round(24 * scale)) if pre is None else int(pre)
-    post = int(math.ceil(taper + 8 * scale)) if post is None else int(post)
-    w = 2.0 * math.pi * beep.f_hz / fs
-    kw = {"w": w, "fs": fs, "beep": beep}
-    length = pre + post
+    pre, post = _window(fs, beep, pre, post)
     lo = max(int(lo), pre)
     hi = min(int(hi), len(x) - post - 4)
     if hi < lo:
         return None
 
-    # Stage 1: integer grid. On an integer grid the basis is the same for every tau (the
-    # carrier phase is absorbed), so one QR serves all offsets. F statistic of the edge
-    # model in each window; the onset is the earliest local maximum that reaches
-    # ``first_path`` times the largest (first path, not strongest: reflections that add up
-    # in phase can make a later, stronger edge).
-    # With a background tone, the statistic is the partial F test of the edge columns
-    # over the background-only model (a plateau is then explained by the background alone).
+    f_stat = edge_statistic(
+        x,
+        fs=fs,
+        beep=beep,
+        lo=lo,
+        hi=hi,
+        pre=pre,
+        post=post,
+        background=background,
+        mask=mask,
+        dc=dc,
+    )
+    i_a = first_peak(f_stat, first_path, f_min)
+    return refine_onset(
+        x,
+        fs=fs,
+        beep=beep,
+        a=lo + i_a,
+        f_stat=float(f_stat[i_a]),
+        pre=pre,
+        post=post,
+        background=background,
+        mask=mask,
+        dc=dc,
+    )
+
+
+def _window(fs: float, beep: Beep, pre: int | None, post: int | None) -> tuple[int, int]:
+    """Default samples of background before and of edge after an onset."""
+    scale = fs / 44100.0
+    pre = int(round(24 * scale)) if pre is None else int(pre)
+    post = int(math.ceil(beep.taper_s * fs + 8 * scale)) if post is None else int(post)
+    return pre, post
+
+
+def edge_statistic(
+    x: np.ndarray,
+    *,
+    fs: float,
+    beep: Beep,
+    lo: int,
+    hi: int,
+    pre: int | None = None,
+    post: int | None = None,
+    background: bool = False,
+    mask: np.ndarray | None = None,
+    dc: bool = False,
+) -> np.ndarray:
+    """Stage 1 of :func:`fit_edge`: the edge's F statistic at every integer onset in
+    ``[lo, hi]`` (``lo``, ``hi`` already clipped to where the window fits ``x``).
+
+    On an integer grid the basis is the same for every onset (the carrier phase is
+    absorbed), so one QR serves all offsets. The F statistic of the edge model in each
+    window is explained energy per edge parameter over residual energy per degree of
+    freedom; with nuisance columns (background tone, constant and slope) it is the partial
+    F test of the edge columns over the nuisance-only model (a plateau is then explained by
+    the background alone).
+    """
+    pre, post = _window(fs, beep, pre, post)
+    length = pre + post
+    kw = {"w": 2.0 * math.pi * beep.f_hz / fs, "fs": fs, "beep": beep, "dc": dc}
     k = np.arange(length, dtype=np.float64)
     seg = x[lo - pre : hi + post]
+    if mask is not None and np.any(mask[lo - pre : hi + post]):
+        seg = np.where(mask[lo - pre : hi + post], 0.0, seg)
     frames = np.lib.stride_tricks.sliding_window_view(seg, length)
     total = np.einsum("ij,ij->i", frames, frames)
 
@@ -164,21 +235,52 @@ def fit_edge(
         proj = frames @ q
         return np.einsum("ij,ij->i", proj, proj)
 
-    full = explained_by(_basis(k, float(pre), background=background, **kw))
-    base = explained_by(_basis(k, float(pre), background=True, **kw)[:, 2:]) if background else 0.0
-    n_par = 4 if background else 2
+    cols = _basis(k, float(pre), background=background, **kw)
+    full = explained_by(cols)
+    base = explained_by(cols[:, 2:]) if cols.shape[1] > 2 else 0.0
+    n_par = cols.shape[1]
     # Residual floored at 1e-12 of the window energy: noiseless input must not turn
     # rounding residue into a statistic.
     resid = np.maximum(total - full, 1e-12 * total + 1e-300) / (length - n_par)
-    f_stat = np.maximum(full - base, 0.0) / 2.0 / resid
-    a = lo + _first_peak(f_stat, first_path, f_min)
+    return np.maximum(full - base, 0.0) / 2.0 / resid
 
+
+def refine_onset(
+    x: np.ndarray,
+    *,
+    fs: float,
+    beep: Beep,
+    a: int,
+    f_stat: float = math.inf,
+    pre: int | None = None,
+    post: int | None = None,
+    background: bool = False,
+    mask: np.ndarray | None = None,
+    dc: bool = False,
+) -> EdgeFit | None:
+    """Stage 2 of :func:`fit_edge`: the continuous onset near integer onset ``a``, by the
+    plain residual in a fixed window, with its Fisher-information 1-sigma.
+
+    ``f_stat`` is passed through to the result. None when too few unmasked samples are
+    left.
+    """
+    scale = fs / 44100.0
+    pre, post = _window(fs, beep, pre, post)
+    kw = {"w": 2.0 * math.pi * beep.f_hz / fs, "fs": fs, "beep": beep, "dc": dc}
+    n_cols = 2 + 2 * int(background) + 2 * int(dc)
     # Stage 2: continuous tau in a fixed window around a, plain residual.
     h = 3.0 * scale + 1.0
     i0 = max(0, int(math.floor(a - h)) - pre)
     i1 = min(len(x), int(math.ceil(a + h)) + post)
     n = np.arange(i0, i1, dtype=np.float64)
     seg2 = x[i0:i1]
+    n_masked = 0
+    if mask is not None:
+        keep = ~np.asarray(mask[i0:i1], dtype=bool)
+        n_masked = int(len(keep) - keep.sum())
+        if keep.sum() < 8 + 2 * n_cols:
+            return None
+        n, seg2 = n[keep], seg2[keep]
     kw2 = {**kw, "background": background}
     # Coarse grid, then a fine grid between the coarse minimum's neighbours, then a
     # parabola through the three lowest fine points; each grid is one batched solve.
@@ -207,4 +309,11 @@ def fit_edge(
     sigma = 1.0 / math.sqrt(info) if info > 0 else math.inf
     amp = float(math.hypot(coef[0], coef[1]))
     snr_db = 10.0 * math.log10(max(0.5 * amp * amp / noise_var, 1e-30))
-    return EdgeFit(onset=float(tau), sigma=float(sigma), snr_db=snr_db, amplitude=amp)
+    return EdgeFit(
+        onset=float(tau),
+        sigma=float(sigma),
+        snr_db=snr_db,
+        amplitude=amp,
+        f_stat=float(f_stat),
+        n_masked=n_masked,
+    )
