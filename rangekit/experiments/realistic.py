@@ -194,11 +194,11 @@ def render_exchange(
     """Render one two-device exchange in a pyroomacoustics room.
 
     Device 0 plays ``signal`` (default the rangekit beep), then device 1 a random
-    ``gap_s`` after device 0's signal ended; each records from its own random start (0–0.15 s before device 0 plays)
-    with its own sample clock (uniform in ±``ppm``). White noise is added per device at
-    ``snr_db`` below the power of the far arrival's strongest burst (the direct path and
-    the reflections within it). Impairments are applied by the caller
-    (:func:`rangekit.sim.impair.impair`).
+    ``gap_s`` after device 0's signal ended; each records from its own random start
+    (0.05–0.2 s before device 0 plays) with its own sample clock (uniform in ±``ppm``).
+    White noise is added per device at ``snr_db`` below the power of the far arrival's
+    strongest burst (the direct path and the reflections within it). Impairments are
+    applied by the caller (:func:`rangekit.sim.impair.impair`).
 
     Parameters
     ----------
