@@ -20,6 +20,67 @@ def synth():
     """Render simulated recordings plus a JSON sidecar with the ground truth."""
 
 
+def _impair_spec(ctx, param, value):
+    """--impair SPEC parsed now, before anything is rendered or written."""
+    if value is None:
+        return None
+    from rangekit.errors import InvalidParameterError
+    from rangekit.sim.impair import parse_impairments
+
+    try:
+        return parse_impairments(value)
+    except InvalidParameterError as e:
+        raise click.BadParameter(str(e), ctx=ctx, param=param) from None
+
+
+impair_option = click.option(
+    "--impair",
+    "impairments",
+    metavar="SPEC",
+    default=None,
+    callback=_impair_spec,
+    help="Impair the rendered recording before writing it: KEY=VALUE[,...] with keys dc, "
+    "clip_db, lf_db, hum_db, hum_hz, pink_db, interference (speech|music), interference_db, "
+    "interference_max_hz, agc_db, agc_steps, silence_s, lp_hz, hp_hz; levels in dB over "
+    "the rendered noise floor (docs/impairments.md).",
+)
+
+
+def _impair(imp, recordings, *, fs, seed, floor_psd, truth):
+    """Apply --impair to each array of ``recordings`` (one WAV's samples each) and clip at
+    full scale as a 16-bit ADC would; returns the arrays and ``truth`` moved by the
+    silence padding with its ``impairments`` record. ``floor_psd``: per recording, the
+    simulator's noise floor (one value or one per channel)."""
+    import numpy as np
+
+    from rangekit.sim.impair import impair, shift_truth
+
+    if imp is None:
+        return recordings, truth
+    # Draws apart from the render's: the same --seed renders the same recording.
+    rng = np.random.default_rng(None if seed is None else [seed, 1])
+    out, clipped, full, floors, shift = [], [], [], [], 0
+    for x, floor in zip(recordings, floor_psd, strict=True):
+        r = impair(x, fs=fs, impairments=imp, rng=rng, floor_psd=floor)
+        over = np.abs(r.x) > 1.0
+        full += np.atleast_1d(over.mean(axis=0)).tolist()
+        out.append(np.clip(r.x, -1.0, 1.0))
+        clipped += r.clipped_fraction.tolist()
+        floors += r.floor_psd.tolist()
+        shift = r.shift_samples
+    truth = shift_truth(truth, shift)
+    truth["impairments"] = {
+        **imp.as_dict(),
+        "spec": imp.spec(),
+        "shift_samples": shift,
+        "shift_s": shift / fs,
+        "clipped_fraction": clipped,
+        "full_scale_clipped_fraction": full,
+        "floor_psd": floors,
+    }
+    return out, truth
+
+
 def _parse_point(text: str, name: str) -> list[float]:
     v = float_list(text, name=name)
     if v is None or len(v) != 3:
@@ -71,32 +132,37 @@ def _parse_point(text: str, name: str) -> list[float]:
 @click.option("--mono", is_flag=True, help="Write one mono WAV per device (NAME_devI.wav).")
 @click.option("--seed", type=int, default=None, help="Random seed (recording starts, noise).")
 @beep_options
+@impair_option
 @click.option(
     "-o", "--output", type=click.Path(dir_okay=False), required=True, help="WAV file to write."
 )
 @debug_option
 def synth_beepbeep(
     distance, positions, self_distance, snr_db, no_noise, noise, room, absorption, order,
-    temp_c, ppm, fs, mono, seed, output, **beep_kw,
+    temp_c, ppm, fs, mono, seed, impairments, output, **beep_kw,
 ):  # fmt: skip
     """An exchange in which every device plays the beep in turn (device 0 first).
 
     Two devices --distance apart, or one device per --position. Each device records from
     a random start (0-0.1 s, seeded) at --fs with its --ppm clock error. Writes OUTPUT
     (one channel per device, 16-bit PCM) and OUTPUT with suffix .json: positions, every
-    device's true onsets in its own samples, and each pair's true distance.
+    device's true onsets in its own samples, and each pair's true distance. --impair
+    adds real recordings' impairments (the truth moves with silence_s).
 
     \b
     Examples:
       rangekit synth beepbeep --distance 2.0 --snr-db 20 --seed 1 -o x.wav
       rangekit synth beepbeep --position 1,1,1.2 --position 4,2,1.2 --position 2,4,1.2 \\
           --room 6,5,3 --seed 2 -o three.wav
+      rangekit synth beepbeep --distance 2 --seed 1 --impair dc=0.02,clip_db=10,hum_db=30 \\
+          -o x.wav
     """
     import numpy as np
 
     from rangekit.io.audio import write_audio
     from rangekit.io.sidecar import write_json
     from rangekit.sim import Device, ShoeboxRoom, pair_devices, render_beepbeep
+    from rangekit.sim.impair import noise_floor_psd
 
     rng = np.random.default_rng(seed)
     beep = make_beep(beep_kw)
@@ -143,22 +209,44 @@ def synth_beepbeep(
         rng=rng,
     )
     out = Path(output)
-    truth = dict(sim.truth)
+    floors = [
+        noise_floor_psd(d["noise_sigma"], fs=fs, kind=noise, n_samples=len(x))
+        for d, x in zip(sim.truth["devices"], sim.recordings, strict=True)
+    ]
+    if mono:
+        recordings = sim.recordings
+    else:
+        length = min(len(x) for x in sim.recordings)
+        recordings, floors = [np.stack([x[:length] for x in sim.recordings], axis=1)], [floors]
+    recordings, truth = _impair(
+        impairments, recordings, fs=fs, seed=seed, floor_psd=floors, truth=dict(sim.truth)
+    )
     truth["seed"] = seed
     if mono:
         files = [out.with_name(f"{out.stem}_dev{i}{out.suffix or '.wav'}") for i in range(n)]
-        for f, x in zip(files, sim.recordings, strict=True):
-            write_audio(f, x, fs=fs)
-        truth["files"] = [f.name for f in files]
     else:
-        length = min(len(x) for x in sim.recordings)
-        write_audio(out, np.stack([x[:length] for x in sim.recordings], axis=1), fs=fs)
-        truth["files"] = [out.name]
+        files = [out]
+    for f, x in zip(files, recordings, strict=True):
+        write_audio(f, x, fs=fs)
+    truth["files"] = [f.name for f in files]
     write_json(out.with_suffix(".json"), truth)
     pairs = ", ".join(f"{p['a']}-{p['b']}: {p['distance_m']:.4f} m" for p in truth["pairs"])
     click.echo(
         f"wrote {', '.join(truth['files'])} and {out.with_suffix('.json').name} ({pairs})", err=True
     )
+
+
+def _ultrasonic_output(x, truth, *, peak, fs, seed, imp):
+    """The WAV samples of an ultrasonic render (scaled to ``peak``, then --impair with the
+    render's white-noise floor) and a copy of its truth."""
+    import numpy as np
+
+    from rangekit.sim.impair import noise_floor_psd
+
+    scale = peak / float(np.max(np.abs(x)))
+    floor = noise_floor_psd(truth["noise_sigma"] * scale, fs=fs)
+    (x,), truth = _impair(imp, [x * scale], fs=fs, seed=seed, floor_psd=[floor], truth=truth)
+    return x, dict(truth)
 
 
 def _parse_pose(text: str, name: str = "--pose") -> list[float]:
@@ -187,6 +275,7 @@ def _ultrasonic_synth_options(f):
         ),
         click.option("--seed", type=int, default=None, help="Random seed (noise)."),
         click.option("--no-noise", is_flag=True, help="Render without noise."),
+        impair_option,
         click.option(
             "-o",
             "--output",
@@ -285,7 +374,7 @@ def _ultrasonic_synth_options(f):
 @_ultrasonic_synth_options
 def synth_oneway(
     txs, ceiling, pose, radius, n_windows, period, latency, snr_db, no_noise, room, absorption,
-    order, reflections, temp_c, q, fs, seed, output,
+    order, reflections, temp_c, q, fs, seed, impairments, output,
 ):  # fmt: skip
     """Ceiling beacons fired in turn, heard by a robot's three receivers (Kim & Kim 2013).
 
@@ -348,14 +437,13 @@ def synth_oneway(
         rng=np.random.default_rng(seed),
     )
     out = Path(output)
-    x = sim.x / float(np.max(np.abs(sim.x))) * 0.5
-    write_audio(out, x.T, fs=fs)
-    truth = dict(sim.truth)
+    x, truth = _ultrasonic_output(sim.x.T, sim.truth, peak=0.5, fs=fs, seed=seed, imp=impairments)
+    write_audio(out, x, fs=fs)
     truth["seed"] = seed
     truth["files"] = [out.name]
     write_json(out.with_suffix(".json"), truth)
     click.echo(
-        f"wrote {out.name} ({len(truth['windows'])} windows x {x.shape[0]} receivers) and "
+        f"wrote {out.name} ({len(truth['windows'])} windows x {x.shape[1]} receivers) and "
         f"{out.with_suffix('.json').name}",
         err=True,
     )
@@ -392,7 +480,7 @@ def synth_oneway(
     help="In-band SNR of an on-axis echo at the 6 m maximum range, dB.",
 )
 @_ultrasonic_synth_options
-def synth_echo(map_path, poses, mount, snr_db, no_noise, temp_c, q, fs, seed, output):
+def synth_echo(map_path, poses, mount, snr_db, no_noise, temp_c, q, fs, seed, impairments, output):
     """SRF02 echo recording in a floor plan: one 70 ms ranging cycle per --pose.
 
     Sample 0 of each cycle is the ping (8 cycles of 40 kHz). The recording holds the
@@ -432,9 +520,8 @@ def synth_echo(map_path, poses, mount, snr_db, no_noise, temp_c, q, fs, seed, ou
         rng=np.random.default_rng(seed),
     )
     out = Path(output)
-    x = sim.x[0] / float(np.max(np.abs(sim.x))) * 0.9
+    x, truth = _ultrasonic_output(sim.x[0], sim.truth, peak=0.9, fs=fs, seed=seed, imp=impairments)
     write_audio(out, x, fs=fs)
-    truth = dict(sim.truth)
     truth["seed"] = seed
     truth["map"] = str(map_path)
     truth["files"] = [out.name]

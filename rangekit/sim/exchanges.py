@@ -375,12 +375,17 @@ def render_exchanges(
             r_dir = float(np.linalg.norm(dj.speaker_m - di.mic_m))
             onsets[:, i, j] = (play[:, j] + r_dir / c - di.rec_start_s) * rate_i
             weakest = min(weakest, src_power / max(r_dir, 1e-3) ** 2)
+        sigma = 0.0
         if snr_db is not None:
             sigma = math.sqrt(weakest / 10 ** (float(snr_db) / 10))
             x += sigma * make_noise(n_samp, kind=noise, rng=rng)
         scale = peak / float(np.max(np.abs(x)))
         recordings.append(x * scale)
-        truth_dev.append(device_truth(di, play_s=float(play[0, i]), onsets=onsets[0, i]))
+        truth_dev.append(
+            device_truth(
+                di, play_s=float(play[0, i]), onsets=onsets[0, i], noise_sigma=sigma * scale
+            )
+        )
     pairs = pair_truth(devices)
     truth = {
         "scheme": "beepbeep",

@@ -270,13 +270,16 @@ def render_beepbeep(
             r_dir = float(np.linalg.norm(dj.speaker_m - di.mic_m))
             onsets.append((play[j] + r_dir / c - di.rec_start_s) * rate_i)
             weakest = min(weakest, amp / max(r_dir, 1e-3))
+        sigma = 0.0
         if snr_db is not None:
             sig_pow = 0.5 * weakest**2
             sigma = math.sqrt(sig_pow / 10 ** (float(snr_db) / 10))
             x += sigma * make_noise(n_samp, kind=noise, rng=rng)
         scale = peak / float(np.max(np.abs(x)))
         recordings.append(x * scale)
-        truth_dev.append(device_truth(di, play_s=float(play[i]), onsets=onsets))
+        truth_dev.append(
+            device_truth(di, play_s=float(play[i]), onsets=onsets, noise_sigma=sigma * scale)
+        )
     pairs = pair_truth(devices)
     truth = {
         "scheme": "beepbeep",
@@ -292,8 +295,11 @@ def render_beepbeep(
     return SimResult(recordings, [d.fs for d in devices], truth)
 
 
-def device_truth(d: Device, *, play_s: float, onsets: Sequence[float]) -> dict:
-    """One device's entry of the truth sidecar: geometry, clock, play time, true onsets."""
+def device_truth(
+    d: Device, *, play_s: float, onsets: Sequence[float], noise_sigma: float = 0.0
+) -> dict:
+    """One device's entry of the truth sidecar: geometry, clock, play time, true onsets and
+    the standard deviation of the noise in the (scaled) recording."""
     return {
         "speaker_m": d.speaker_m.tolist(),
         "mic_m": d.mic_m.tolist(),
@@ -303,6 +309,7 @@ def device_truth(d: Device, *, play_s: float, onsets: Sequence[float]) -> dict:
         "clock_ppm": d.clock_ppm,
         "fs": d.fs,
         "onsets": [float(o) for o in onsets],
+        "noise_sigma": float(noise_sigma),
     }
 
 
