@@ -58,14 +58,19 @@ from rangekit.types import Arrivals
 
 __all__ = [
     "DEFAULT_BLOCK",
+    "WEIGHTINGS",
     "MatchedFilter",
     "PathPeak",
+    "Spectra",
     "coded_template",
     "crb_delay_s",
     "detect_matched",
     "first_path",
     "interp_peak",
     "noise_level",
+    "weighting_response",
+    "welch_spectra",
+    "zero_phase_taps",
 ]
 
 #: Default FFT size of the overlap-save blocks (samples).
@@ -135,10 +140,11 @@ def coded_template(
     return np.ascontiguousarray(y[: max(keep, len(drive))])
 
 
-def _analytic_fir(h: np.ndarray) -> tuple[np.ndarray, int]:
+def _analytic_fir(h: np.ndarray, tail: float = _ANALYTIC_TAIL) -> tuple[np.ndarray, int]:
     """The analytic version of real FIR ``h`` as a finite complex FIR.
 
-    Returns ``(g, pre)`` with ``g[k + pre] = h_a[k]`` for ``k`` in ``[-pre, len(g) - pre)``.
+    Returns ``(g, pre)`` with ``g[k + pre] = h_a[k]`` for ``k`` in ``[-pre, len(g) - pre)``;
+    the Hilbert transform's tails are cut where less than ``tail`` of the energy is left.
     """
     n_h = len(h)
     n = 1 << int(math.ceil(math.log2(16 * n_h + 64)))
@@ -150,8 +156,8 @@ def _analytic_fir(h: np.ndarray) -> tuple[np.ndarray, int]:
     e = np.abs(ha) ** 2
     total = e.sum()
     c = np.cumsum(e)
-    lo = int(np.searchsorted(c, 0.5 * _ANALYTIC_TAIL * total))
-    hi = int(np.searchsorted(c, (1.0 - 0.5 * _ANALYTIC_TAIL) * total)) + 1
+    lo = int(np.searchsorted(c, 0.5 * tail * total))
+    hi = int(np.searchsorted(c, (1.0 - 0.5 * tail) * total)) + 1
     lo = min(lo, n // 2)
     hi = max(hi, n // 2 + n_h)
     return np.ascontiguousarray(ha[lo:hi]), n // 2 - lo
@@ -170,18 +176,29 @@ class MatchedFilter:
         Real template; index 0 is the time origin of a match.
     block : int
         FFT size of the overlap-save blocks (default 2^15); raised to fit the template.
+    tail : float
+        Fraction of the analytic template's energy its truncated FIR may leave out
+        (default 1e-9). The Hilbert transform of a probe reaching down to tens of hertz
+        decays slowly: a 1 s 20 Hz-20 kHz sweep needs 810k taps at 1e-9, 227k at 1e-7.
     """
 
-    def __init__(self, template: np.ndarray, *, block: int = DEFAULT_BLOCK) -> None:
+    def __init__(
+        self, template: np.ndarray, *, block: int = DEFAULT_BLOCK, tail: float = _ANALYTIC_TAIL
+    ) -> None:
         h = V.signal_1d("template", template)
         if len(h) < 2 or not np.any(h):
             raise InvalidParameterError("template must have at least 2 samples, not all zero")
         self.template = h
         self.energy = float(h @ h)
-        g, pre = _analytic_fir(h)
+        g, pre = _analytic_fir(h, V.in_range("tail", tail, 0.0, 0.1))
+        self._set_fir(g, pre, V.positive_int("block", block, minimum=16))
+
+    def _set_fir(self, g: np.ndarray, pre: int, block: int) -> None:
+        """Use the complex FIR ``g`` (``g[k + pre]`` = analytic template at lag ``k``)."""
         self.pre = pre
         self.n_taps = len(g)
-        n = V.positive_int("block", block, minimum=16)
+        self.block = block
+        n = block
         while n < 4 * self.n_taps:
             n *= 2
         self.n_fft = n
@@ -189,11 +206,41 @@ class MatchedFilter:
         from scipy import fft as sfft
 
         self._fft = sfft
+        self._g = g
         # Correlation with g = convolution with conj(g) reversed; the FFT of the taps
         # placed at [0, n_taps) correlates x_seg[j + k] with g[k].
         self._gr = np.conj(sfft.rfft(g.real, n))
         self._gi = -np.conj(sfft.rfft(g.imag, n))  # conj(g) has imaginary part -g.imag
         self._self_response: np.ndarray | None = None
+
+    def prefiltered(self, taps: np.ndarray) -> MatchedFilter:
+        """This filter applied to ``x`` after the zero-phase FIR ``taps`` (odd length).
+
+        ``prefiltered(w).correlate(x)`` equals ``correlate(bandlimit(x, w))`` (the FIR
+        applied with its group delay removed, :func:`rangekit.detect.condition.bandlimit`)
+        up to the treatment of the array's ends: the FIR is folded into the correlation
+        taps (``g' = g * w``, ``(len(w) - 1) / 2`` more samples of look-back), so the
+        recording passes through one FFT per block as before. A real, even frequency
+        response (symmetric ``taps``) changes the weighting of each frequency, never the
+        time origin: the correlation with the filter's own template still peaks at lag 0
+        (its :attr:`self_response` is the weighted one).
+        """
+        w = V.signal_1d("taps", taps)
+        if len(w) % 2 != 1:
+            raise InvalidParameterError(f"taps must have odd length, got {len(w)}")
+        from scipy.signal import oaconvolve
+
+        out = object.__new__(MatchedFilter)
+        out.template = self.template
+        out.energy = self.energy
+        g = self._g
+        gw = (
+            oaconvolve(g.real, w) + 1j * oaconvolve(g.imag, w)
+            if len(g) > 4 * len(w) and len(w) > 64
+            else np.convolve(g, w)
+        )
+        out._set_fir(np.ascontiguousarray(gw), self.pre + (len(w) - 1) // 2, self.block)
+        return out
 
     @property
     def self_response(self) -> np.ndarray:
@@ -264,6 +311,215 @@ class MatchedFilter:
             yield self._segments(buf, tail)
 
 
+#: Weightings of the matched filter's cross spectrum (:func:`weighting_response`).
+WEIGHTINGS = ("none", "prewhiten", "phat", "scot", "ml")
+#: Regularisation of the noise-spectrum weights: a band is never weighted more than
+#: 1 / NOISE_WEIGHT_REG (+20 dB) above the band's median noise level.
+NOISE_WEIGHT_REG = 1e-2
+
+
+@dataclass(frozen=True)
+class Spectra:
+    """Welch power spectral densities of one recording (one-sided, per Hz).
+
+    Attributes
+    ----------
+    f_hz : ndarray, shape (nperseg // 2 + 1,)
+        Frequencies of the bins, Hz.
+    noise : ndarray
+        Noise PSD: the median over segments (divided by ln 2, the median of an
+        exponential variable in units of its mean), robust to arrivals that occupy a
+        minority of the segments at each frequency.
+    mean : ndarray
+        Mean PSD over the same segments (noise and signal).
+    nperseg : int
+        Segment length, samples (the weights' frequency resolution is ``fs / nperseg``).
+    """
+
+    f_hz: np.ndarray
+    noise: np.ndarray
+    mean: np.ndarray
+    nperseg: int
+
+
+def welch_spectra(
+    x: np.ndarray,
+    *,
+    fs: float,
+    nperseg: int,
+    max_segments: int = 256,
+    min_segments: int = 32,
+    q: float = 20.0,
+    rel_zero: float = 1e-12,
+) -> Spectra:
+    """Noise and mean PSD of ``x`` from Hann-windowed, non-overlapping segments.
+
+    Welch (1967) averaging, with a low percentile across segments for the noise (the
+    idea of ``scipy.signal.welch(..., average="median")``, more robust): a sweep holds
+    any one frequency for a few milliseconds, a tone burst is on for a small fraction of
+    the recording, so at each frequency most segments hold noise only. The ``q``-th
+    percentile of the segments' periodograms, divided by ``-ln(1 - q / 100)`` (the mean
+    of an exponential variable, the law of one bin of noise, whose ``q``-th percentile it
+    is), stays the noise level while arrivals occupy up to about ``1 - q / 100`` of the
+    segments at a frequency. Segments of digital silence (energy below ``rel_zero``
+    times the largest segment's) are left out, so zero padding does not pull the noise to
+    zero. Long recordings are represented by ``max_segments`` segments spread evenly over
+    them; short ones use shorter segments (down to 128 samples) to have at least
+    ``min_segments``. Scaled so that ``sum(psd) * fs / nperseg`` is the mean power
+    (Parseval).
+
+    Parameters
+    ----------
+    x : ndarray
+        The recording (one channel).
+    fs : float
+        Sample rate, Hz.
+    nperseg : int
+        Segment length, samples (the longest used).
+    max_segments, min_segments : int
+        Most segments used (evenly spaced); fewest wanted before shortening segments.
+    q : float
+        Percentile of the noise estimate.
+    rel_zero : float
+        Relative energy below which a segment counts as digital silence.
+
+    Returns
+    -------
+    Spectra
+        ``nperseg`` is the segment length actually used; ``noise`` and ``mean`` are
+        zeros when fewer than 8 segments hold signal.
+
+    Examples
+    --------
+    >>> x = np.random.default_rng(0).standard_normal(100000)
+    >>> s = welch_spectra(x, fs=1000.0, nperseg=256)
+    >>> bool(abs(np.median(s.noise) * 500.0 - 1.0) < 0.1)
+    True
+    """
+    from scipy.signal import get_window
+
+    fs = V.sample_rate(fs)
+    x = np.asarray(x, dtype=np.float64)
+    nperseg = V.positive_int("nperseg", nperseg, minimum=8)
+    while nperseg > 128 and len(x) // nperseg < min_segments:
+        nperseg //= 2
+    nb = nperseg // 2 + 1
+    f = np.fft.rfftfreq(nperseg, 1.0 / fs)
+    empty = Spectra(f, np.zeros(nb), np.zeros(nb), nperseg)
+    n_seg = len(x) // nperseg
+    if n_seg < 8:
+        return empty
+    starts = np.arange(n_seg) * nperseg
+    if n_seg > max_segments:
+        starts = starts[np.linspace(0, n_seg - 1, max_segments).round().astype(np.int64)]
+    segs = x[starts[:, None] + np.arange(nperseg)]
+    e = np.einsum("ij,ij->i", segs, segs)
+    live = e > rel_zero * float(e.max()) if e.max() > 0 else np.zeros(len(e), bool)
+    if live.sum() < 8:
+        return empty
+    w = get_window("hann", nperseg)
+    P = np.abs(np.fft.rfft(segs[live] * w, axis=1)) ** 2
+    P *= 2.0 / (fs * float(w @ w))
+    P[:, 0] *= 0.5
+    if nperseg % 2 == 0:
+        P[:, -1] *= 0.5
+    mean = P.mean(axis=0)
+    k = int(round(q / 100.0 * (len(P) - 1)))
+    noise = np.partition(P, k, axis=0)[k] / -math.log(1.0 - q / 100.0)
+    return Spectra(f, noise, mean, nperseg)
+
+
+def weighting_response(
+    kind: str,
+    spectra: Spectra,
+    *,
+    template_psd: np.ndarray,
+    band_hz: tuple[float, float],
+) -> np.ndarray | None:
+    """Real, non-negative weight ``W(f)`` of the matched filter's cross spectrum.
+
+    The weighted matched filter correlates ``x`` with the template through
+    ``X(f) W(f) S*(f)`` (``S``: the template's spectrum). The generalised
+    cross-correlation (GCC) weightings of Knapp & Carter (1976, "The generalized
+    correlation method for estimation of time delay", IEEE Trans. ASSP 24(4), Table I),
+    written for a *known* noise-free template (``G_ss = |S|^2``, the template's noise is
+    zero):
+
+    * ``"none"``: ``W = 1``, the plain matched filter (optimal in white noise).
+    * ``"prewhiten"``: ``W = 1 / sqrt(N)``: the recording whitened by its noise PSD ``N``,
+      correlated with the unwhitened template.
+    * ``"phat"``: ``W = 1 / |G_xs| ~ 1 / |S|^2``: the phase transform; with a known
+      template its expected cross spectrum is ``|S|^2``, so PHAT is inverse filtering
+      within the band, whatever the noise.
+    * ``"scot"``: ``W = 1 / sqrt(G_xx G_ss) = 1 / (|S| sqrt(G_xx))``, ``G_xx`` the
+      recording's mean PSD (noise and signal).
+    * ``"ml"``: ``W = 1 / N``: the maximum-likelihood (Hannan & Thomson; Eckart's filter
+      ``|S|^2 / (N_1 N_2)`` with the template's noise zero) matched filter in coloured
+      noise, ``S*(f) / N(f)``: both recording and template prewhitened (Van Trees 1968,
+      *Detection, Estimation and Modulation Theory I*, §4.3).
+
+    ``N`` is regularised as ``N + NOISE_WEIGHT_REG * median_band(N)`` (no band is weighted
+    more than +20 dB above the band's median noise), ``|S|^2`` likewise relative to its
+    maximum; ``W`` is normalised to a median of 1 over ``band_hz``.
+
+    Returns
+    -------
+    ndarray or None
+        ``W`` on ``spectra.f_hz``; None for ``"none"`` or when the recording holds no
+        noise to weight by (digital silence).
+    """
+    if kind not in WEIGHTINGS:
+        raise InvalidParameterError(f"weighting={kind!r} must be one of {', '.join(WEIGHTINGS)}")
+    if kind == "none":
+        return None
+    f = spectra.f_hz
+    if len(template_psd) != len(f):  # shorter segments were used: the same grid, coarser
+        fine = np.linspace(0.0, f[-1], len(template_psd))
+        template_psd = np.interp(f, fine, template_psd)
+    band = (f >= band_hz[0]) & (f <= band_hz[1])
+    if not band.any():
+        band = np.ones(len(f), bool)
+    S2 = np.asarray(template_psd, dtype=np.float64)
+    S2 = S2 + NOISE_WEIGHT_REG * float(S2.max())
+
+    def reg(p: np.ndarray) -> np.ndarray | None:
+        m = float(np.median(p[band]))
+        if not m > 0:
+            return None
+        # Smoothed over 5 bins (in dB): a noise spectrum's broad shape is what is
+        # weighted; the periodograms' scatter and a sweep's Fresnel ripple are not (their
+        # weights' FIR would ring into echoes of every strong arrival).
+        lp = np.log(p + NOISE_WEIGHT_REG * m)
+        lp = np.convolve(np.pad(lp, 2, mode="edge"), np.full(5, 0.2), mode="valid")
+        return np.exp(lp)
+
+    if kind == "phat":
+        W = 1.0 / S2
+    else:
+        N = reg(spectra.mean if kind == "scot" else spectra.noise)
+        if N is None:
+            return None
+        W = {"prewhiten": lambda: 1.0 / np.sqrt(N), "ml": lambda: 1.0 / N}.get(
+            kind, lambda: 1.0 / np.sqrt(N * S2)
+        )()
+    return W / float(np.median(W[band]))
+
+
+def zero_phase_taps(W: np.ndarray, nperseg: int) -> np.ndarray:
+    """Symmetric FIR (odd length ``nperseg - 1``) whose response is ``W`` smoothed.
+
+    ``W`` on ``rfftfreq(nperseg)``: its inverse FFT, centred, Hann-windowed (the response
+    is ``W`` convolved with the window's kernel, two bins wide). Real and even in
+    frequency, so applied with its group delay removed it moves no arrival.
+    """
+    from scipy.signal import get_window
+
+    w = np.fft.irfft(np.asarray(W, dtype=np.float64), nperseg)
+    w = np.roll(w, nperseg // 2)[1:]
+    taps = w * get_window("hann", len(w), fftbins=False)
+    return np.ascontiguousarray(0.5 * (taps + taps[::-1]))
+
+
 def noise_level(env: np.ndarray) -> float:
     """Rayleigh scale of the envelope's noise, from its median (robust to the signal)."""
     if len(env) == 0:
@@ -329,6 +585,7 @@ def first_path(
     rel_threshold: float = DEFAULT_REL_THRESHOLD,
     k_detect: float = DEFAULT_K_DETECT,
     self_response: np.ndarray | None = None,
+    n_paths: int = 1,
 ) -> PathPeak | None:
     """The earliest envelope peak above ``max(k_noise * noise, rel_threshold * strongest)``.
 
@@ -356,6 +613,14 @@ def first_path(
         ``c``), a candidate earlier than the strongest peak must still clear the threshold
         after the strongest path's own side lobes are subtracted, so a side lobe of a strong
         reflection is not taken for the direct path.
+    n_paths : int
+        With ``self_response``: a candidate must also clear the threshold after the
+        responses of up to ``n_paths`` stronger peaks that follow it within the self
+        response's reach are fitted jointly (complex least squares at their peaks) and
+        subtracted, a few steps of CLEAN (Högbom 1974, "Aperture synthesis with a
+        non-regular distribution of interferometer baselines", A&AS 15): in a room the
+        direct path's own side lobes, not only the strongest path's, precede it.
+        Default 1: the strongest path only.
 
     Returns
     -------
@@ -398,6 +663,11 @@ def first_path(
         resid = _sidelobe_residual(c, lo + imax, dmax, self_response)
     for k in cand:
         if resid is None or abs(resid(lo + int(k))) >= thr:
+            if n_paths > 1 and self_response is not None and np.iscomplexobj(c):
+                later = lo + peaks[(peaks > k) & (seg[peaks] > seg[k])]
+                if not _clears_later_paths(c, env, lo + int(k), later, thr, self_response,
+                                           n_paths):  # fmt: skip
+                    continue
             j = int(k)
             break
     d, h = interp_peak(env, lo + j)
@@ -436,6 +706,48 @@ def _drop_outside_sidelobes(
         resid = _sidelobe_residual(c, j, d, self_response)
         peaks = np.array([p for p in peaks if abs(resid(lo + int(p))) >= floor], dtype=np.int64)
     return peaks
+
+
+def _clears_later_paths(
+    c: np.ndarray,
+    env: np.ndarray,
+    k: int,
+    later: np.ndarray,
+    thr: float,
+    self_response: np.ndarray,
+    n_paths: int,
+) -> bool:
+    """Whether ``c[k]`` stays above ``thr`` once the stronger later paths are removed.
+
+    The ``n_paths`` strongest peaks in ``later`` within the self response's reach of
+    ``k`` are modelled as paths at their sub-sample lags; their amplitudes solve the
+    square system ``c[j_i] = sum_l alpha_l R(j_i - tau_l)``.
+    """
+    m = len(self_response) // 2
+    later = later[(later - k < m) & (later < len(c))]
+    if len(later) == 0:
+        return True
+    later = later[np.argsort(-env[later], kind="stable")[:n_paths]]
+    n = len(self_response)
+    f = np.fft.fftfreq(n)
+    spec = np.fft.fft(self_response)
+    shifted, pos = [], []
+    for j in later.tolist():
+        d, _ = interp_peak(env, j)
+        shifted.append(np.fft.ifft(spec * np.exp(-2j * math.pi * f * d)))
+        pos.append(j)
+
+    def resp(p: int, at: int) -> complex:
+        i = at - pos[p] + m
+        return complex(shifted[p][i]) if 0 <= i < n else 0.0
+
+    A = np.array([[resp(p, at) for p in range(len(pos))] for at in pos])
+    try:
+        alpha = np.linalg.solve(A, c[np.array(pos)])
+    except np.linalg.LinAlgError:
+        return True
+    model = sum(alpha[p] * resp(p, k) for p in range(len(pos)))
+    return abs(c[k] - model) >= thr
 
 
 def _sidelobe_residual(c: np.ndarray, i_peak: int, d_peak: float, self_response: np.ndarray):

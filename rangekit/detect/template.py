@@ -1,26 +1,39 @@
 """Arrivals of any probe signal (a sweep, a chirp, a lab's own file) by matched filtering.
 
 The beep detectors look for rangekit's burst train; this one finds every arrival of a
-given :class:`~rangekit.signals.probe.Probe` in a channel:
+given :class:`~rangekit.signals.probe.Probe` in a channel, on recordings from any phone,
+room or transducer (theory and measurements: ``docs/theory/probes.md``):
 
 1. **Template**: the probe at the recording's rate (:meth:`Probe.at_rate`: polyphase
    resampling when the rates differ, an error when its band does not fit).
-2. **Analytic matched filter** (:class:`rangekit.detect.matched.MatchedFilter`,
+2. **Conditioning**: clipped samples (:func:`~rangekit.detect.condition.clip_mask`) are
+   zeroed, so they stay out of the correlation; the noise spectrum is estimated from the
+   recording (:func:`~rangekit.detect.matched.welch_spectra`, median over segments) and
+   the matched filter is weighted by it (``weighting``; default ``"ml"``, the
+   maximum-likelihood ``S*(f) / N(f)``, chosen by measurement) and band-limited to the
+   probe's band (:func:`~rangekit.detect.condition.bandpass_taps`). Both are real and
+   even in frequency and folded into the filter's taps
+   (:meth:`MatchedFilter.prefiltered`): they move no arrival, and the first-path rule
+   compares peaks with the *weighted* filter's own response.
+3. **Analytic matched filter** (:class:`rangekit.detect.matched.MatchedFilter`,
    overlap-save): the envelope ``|c|`` of the correlation with the analytic template.
-3. **Arrivals**: local maxima of the envelope above ``max(k_detect, sqrt(2 ln(n /
-   FALSE_ALARM)))`` times the noise's Rayleigh scale (``n`` samples of noise alone give
-   a false arrival with probability <= ``FALSE_ALARM`` = 1e-3), taken strongest first;
-   a peak within ``min_separation_s`` of a stronger accepted one belongs to that arrival
-   (its reverberation or side lobes). With ``expected`` only the ``expected`` strongest
-   arrivals are kept.
-4. **First path** (:func:`rangekit.detect.matched.first_path`): within ``lookback_s``
-   before each arrival's strongest peak, the earliest peak above ``max(k_noise * noise,
-   rel_threshold * strongest)`` that is not a side lobe of the strongest path. A sweep's
-   correlation peak is sharp, but in a room the reflections pile up later peaks that can
-   be stronger than the direct one; the first path is the direct sound.
-5. **Sub-sample lag** by a Gaussian fit of the envelope (:func:`interp_peak`); 1-sigma
-   from the Cramér–Rao bound ``1 / (2 pi beta snr)`` (``beta``: RMS bandwidth of the
-   template about its centroid).
+4. **Arrivals**: local maxima of the envelope above ``k_rec = max(k_detect, sqrt(2 ln(n
+   / FALSE_ALARM)))`` times the noise's Rayleigh scale, taken strongest first; a peak
+   within ``min_separation_s`` of a stronger accepted one belongs to that arrival (its
+   reverberation or side lobes), and a peak that does not clear ``k_rec`` times the
+   *local* floor just before it (the reverberation or ringing of an earlier arrival) is
+   that arrival's tail, not a new arrival. With ``expected`` only the ``expected``
+   strongest arrivals are kept (tail peaks only when too few others exist, flagged
+   ``reverb_limited``).
+5. **First path** (:func:`rangekit.detect.matched.first_path`): within ``lookback_s``
+   before each arrival's strongest peak, the earliest peak above ``max(k_noise * floor,
+   rel_threshold * strongest)`` that is not a side lobe of the strongest path.
+6. **Sub-sample lag** by a Gaussian fit of the envelope (:func:`interp_peak`); 1-sigma
+   ``sqrt(crb^2 + interp^2 + shape^2)``: the Cramér–Rao bound, the interpolation error of
+   the weighted peak shape, and the shift an unmodelled component of the peak
+   (unresolved multipath, transducer mismatch) can cause.
+7. **Flags** (:data:`rangekit.types.ARRIVAL_FLAGS`): ``clipped``, ``low_snr``,
+   ``ambiguous_first_path``, ``poor_match``, ``reverb_limited``, ``dc_or_lowband``.
 
 The onset of an arrival is the float sample index at which the probe's sample 0 arrived.
 
@@ -40,26 +53,38 @@ from __future__ import annotations
 
 import functools
 import math
+from dataclasses import dataclass
 
 import numpy as np
 
 from rangekit import _validate as V
+from rangekit.detect.condition import bandlimit, bandpass_taps, clip_mask, dilate
 from rangekit.detect.matched import (
     DEFAULT_BLOCK,
     DEFAULT_K_DETECT,
     DEFAULT_K_NOISE,
     DEFAULT_REL_THRESHOLD,
     NOISE_FLOOR_REL,
+    WEIGHTINGS,
     MatchedFilter,
     first_path,
+    interp_peak,
     noise_level,
+    weighting_response,
+    welch_spectra,
+    zero_phase_taps,
 )
 from rangekit.errors import InvalidParameterError
 from rangekit.signals.probe import Probe
-from rangekit.signals.spectrum import rms_bandwidth_hz
-from rangekit.types import Arrivals
+from rangekit.types import Arrivals, flag_bit
 
-__all__ = ["DEFAULT_LOOKBACK_S", "FALSE_ALARM", "detect_template"]
+__all__ = [
+    "DEFAULT_LOOKBACK_S",
+    "DEFAULT_WEIGHTING",
+    "FALSE_ALARM",
+    "POOR_MATCH_EXCESS",
+    "detect_template",
+]
 
 #: Default time before an arrival's strongest peak searched for an earlier direct path, s
 #: (20 ms: a reflection up to 6.9 m longer than the direct path).
@@ -67,6 +92,38 @@ DEFAULT_LOOKBACK_S = 0.020
 #: Probability that a recording of noise alone yields an arrival (sets the detection
 #: threshold together with the recording's length; see :func:`detect_template`).
 FALSE_ALARM = 1e-3
+#: Default weighting of the matched filter (see ``docs/theory/probes.md`` for the
+#: measurements that chose it).
+DEFAULT_WEIGHTING = "ml"
+#: Stronger later paths whose side lobes are removed before an earlier peak counts as
+#: the first path (:func:`rangekit.detect.matched.first_path`, ``n_paths``).
+N_CLEAN_PATHS = 3
+#: ``low_snr``: the first path's SNR is below this multiple of the detection threshold.
+LOW_SNR_FACTOR = 2.0
+#: ``ambiguous_first_path``: another path within the resolution at least this fraction
+#: of the chosen path's height ...
+AMBIGUOUS_REL = 0.5
+#: ... or the choice was within this factor of the first-path threshold.
+AMBIGUOUS_MARGIN = 1.5
+#: ``poor_match``: the fraction of the peak region's energy that the weighted self
+#: response does not explain, beyond the noise's share (chosen by measurement,
+#: ``docs/theory/probes.md``).
+POOR_MATCH_EXCESS = 0.5
+#: ``reverb_limited``: the local floor before an arrival exceeds the recording's noise
+#: floor by this factor.
+REVERB_FACTOR = 2.0
+#: ``dc_or_lowband``: noise PSD more than this factor above the band's median ...
+LOWBAND_PSD_FACTOR = 10.0
+#: ... holding more power than the noise in the probe's band.
+LOWBAND_POWER_RATIO = 1.0
+#: Energy the template's analytic FIR may leave out (its Hilbert tails; the ultrasonic
+#: filter keeps 1e-9): -70 dB in amplitude, below any recording's noise, and a 1 s
+#: 20 Hz-20 kHz sweep's filter shrinks from 810k to 227k taps.
+ANALYTIC_TAIL = 1e-7
+#: Band-limiting starts at DC (low-pass only) for probes reaching below this, Hz: the
+#: noise weighting handles their low band; a high-pass edge there would need thousands
+#: of taps.
+_MIN_HIGHPASS_HZ = 500.0
 
 
 def detect_template(
@@ -80,6 +137,7 @@ def detect_template(
     k_noise: float = DEFAULT_K_NOISE,
     rel_threshold: float = DEFAULT_REL_THRESHOLD,
     k_detect: float = DEFAULT_K_DETECT,
+    weighting: str = DEFAULT_WEIGHTING,
     block: int = DEFAULT_BLOCK,
     what: str = "the recording",
 ) -> Arrivals:
@@ -94,15 +152,22 @@ def detect_template(
     probe : Probe
         The emitted signal.
     expected : int, optional
-        Keep only this many arrivals, the strongest (e.g. one per device of an exchange).
+        Number of emissions in the channel (e.g. one per device of an exchange): exactly
+        this many arrivals are returned when that many are detectable, the strongest
+        that are not another arrival's tail.
     min_separation_s : float, optional
-        Shortest time between the starts of two arrivals, s; peaks closer to a stronger
-        arrival belong to it. Default: the probe's duration (plays do not overlap).
+        Shortest time between the starts of two emissions, s (e.g. a firing period);
+        peaks closer to a stronger arrival belong to it. Default: the probe's duration
+        (plays do not overlap).
     lookback_s : float
         How far before an arrival's strongest peak its direct path may lie (default
         20 ms); capped at half of ``min_separation_s``.
     k_noise, rel_threshold, k_detect : float
         Thresholds of :func:`rangekit.detect.matched.first_path`.
+    weighting : {"ml", "prewhiten", "scot", "phat", "none"}
+        Weighting of the matched filter by the recording's noise spectrum
+        (:func:`rangekit.detect.matched.weighting_response`); ``"none"`` is the plain,
+        unconditioned matched filter.
     block : int
         Overlap-save FFT size.
     what : str
@@ -111,8 +176,23 @@ def detect_template(
     Returns
     -------
     Arrivals
-        ``detector="template"``; ``confidence`` is the first path's height over the
-        arrival's strongest peak; ``burst_onsets[:, 0]`` repeats the onset.
+        ``detector="template"``; ``onset`` and ``sigma`` in samples (``sigma`` includes
+        the model-error terms, never 0); ``snr_db`` the first path's height over the
+        local noise floor of the weighted output; ``confidence`` the first path's height
+        over the arrival's strongest peak; ``burst_onsets[:, 0]`` repeats the onset;
+        ``flags`` as in the module notes.
+
+    Notes
+    -----
+    The 1-sigma in samples is ``sqrt(s_crb^2 + s_interp^2 + s_shape^2)`` with
+    ``s_crb = fs / (2 pi beta_w snr)`` (``beta_w``: RMS bandwidth of the weighted
+    spectrum ``|S|^2 W``; Kay 1993 §3.11), ``s_interp`` the RMS error of the Gaussian
+    peak interpolation on the weighted self response over fractional delays, and
+    ``s_shape = fs sqrt(eps) / (2 pi beta_w)`` where ``eps`` is the fraction of the
+    envelope's energy within the main lobe around the first path that the self response
+    does not explain, beyond the noise's share: by Cauchy–Schwarz an unmodelled
+    component of relative energy ``eps`` shifts a correlation peak by at most
+    ``sqrt(eps) / (2 pi beta)`` (derivation in ``docs/theory/probes.md``).
     """
     fs = V.sample_rate(fs)
     x = V.signal_1d("x", x)
@@ -120,6 +200,10 @@ def detect_template(
         raise InvalidParameterError(f"probe must be a Probe, got {type(probe).__name__}")
     if expected is not None:
         expected = V.positive_int("expected", expected)
+    if weighting not in WEIGHTINGS:
+        raise InvalidParameterError(
+            f"weighting={weighting!r} must be one of {', '.join(WEIGHTINGS)}"
+        )
     sep_s = probe.duration_s if min_separation_s is None else min_separation_s
     sep = max(1, int(round(V.positive("min_separation_s", sep_s) * fs)))
     look = int(round(V.positive("lookback_s", lookback_s, allow_zero=True) * fs))
@@ -127,68 +211,404 @@ def detect_template(
     probe.check_fits(fs, what=what)
     if len(x) < 3:
         return _empty(fs)
-    mf, self_resp, beta = _filter(probe, fs, block, look)
-    c = mf.correlate(x)
+    base = _base(probe, fs, block)
+    if weighting == "none":
+        mask = np.zeros(0, dtype=bool)
+        wf = _unweighted(probe, fs, block, look)
+        lowband = False
+    else:
+        mask = clip_mask(x)
+        if mask.any():
+            x = np.where(mask, 0.0, x)
+        else:
+            mask = np.zeros(0, dtype=bool)
+        spectra = welch_spectra(x, fs=fs, nperseg=base.nperseg)
+        W = weighting_response(
+            weighting, spectra, template_psd=base.template_psd, band_hz=base.band
+        )
+        wf = _weighted(probe, fs, block, W, look)
+        lowband = _lowband(spectra, base.band)
+    c = wf.correlate(x)
     env = np.abs(c)
     noise = max(noise_level(env), NOISE_FLOOR_REL * float(env.max()))
-    peaks = _local_maxima(env)
     # The noise envelope is Rayleigh: P(|c| > k noise) = exp(-k^2 / 2) per sample, so over
     # n samples a peak beyond sqrt(2 ln(n / FALSE_ALARM)) noise levels is a false alarm
     # with probability <= FALSE_ALARM (k_detect = 4.5 alone gives several per second).
     k_rec = max(k_detect, math.sqrt(2.0 * math.log(len(x) / FALSE_ALARM)))
+    peaks = _local_maxima(env)
     peaks = peaks[env[peaks] > k_rec * noise]
     if len(peaks) == 0:
         return _empty(fs)
-    order = peaks[np.argsort(-env[peaks], kind="stable")]
-    taken: list[int] = []
-    for p in order.tolist():
-        if all(abs(p - q) >= sep for q in taken):
-            taken.append(p)
-            if expected is not None and len(taken) == expected:
-                break
-    taken.sort()
+    sel = _select(env, peaks, noise=noise, k_rec=k_rec, k_noise=k_noise,
+                  rel_threshold=rel_threshold, sep=sep, look=look, wf=wf,
+                  expected=expected)  # fmt: skip
+    clip_cum = None
+    if len(mask):
+        clip_cum = np.concatenate(([0], np.cumsum(dilate(mask, wf.reach), dtype=np.int64)))
+    m = len(wf.self_resp) // 2
     rows = []
-    for q in taken:
+    for q, start, floor, tail in sel:
+        # Before the first arrival the local floor is its own range side lobes (which the
+        # first-path rule subtracts), not a floor: the recording's noise is.
+        earlier = any(q2 < start for q2, _, _, _ in sel)
+        if not (earlier or tail):
+            floor = noise
+        lo = min(start, q - 1)  # first_path needs 3 lags; lookback_s=0 is legal
+        a0 = max(0, lo - m - 2)
+        cs = c[a0 : q + m + 4]
+        # A tail peak kept for ``expected`` may not clear k_detect over the local floor;
+        # its floor for the search is capped so that it is still timed (and flagged).
+        f_search = min(floor, float(env[q]) / (k_detect * 1.001))
         pk = first_path(
-            c,
-            lo=q - max(look, 1),  # first_path needs 3 lags; lookback_s=0 is legal
-            hi=q + 2,
-            noise=noise,
+            cs,
+            lo=lo - a0,
+            hi=q + 2 - a0,
+            noise=f_search,
             k_noise=k_noise,
             rel_threshold=rel_threshold,
             k_detect=k_detect,
-            self_response=self_resp,
+            self_response=wf.self_resp,
+            n_paths=N_CLEAN_PATHS,
         )
-        if pk is None:  # cannot happen for a peak above k_detect * noise; kept for safety
+        if pk is None:  # cannot happen for a peak above k_detect * floor; kept for safety
             continue
-        sigma = fs / (2.0 * math.pi * beta * pk.snr) if pk.snr > 0 else math.inf
-        rows.append((pk.lag, sigma, 20.0 * math.log10(max(pk.snr, 1e-300)), pk.height / env[q]))
+        lag = a0 + pk.lag
+        snr = pk.height / floor if floor > 0 else math.inf
+        j = int(round(lag))
+        eps, ambiguous_near = _shape(c, j, lag - j, wf, floor)
+        s_crb = 1.0 / (2.0 * math.pi * wf.beta * snr) if snr > 0 else math.inf
+        s_shape = math.sqrt(eps) / (2.0 * math.pi * wf.beta)
+        sigma = math.sqrt(s_crb**2 + wf.interp_rms**2 + s_shape**2)
+        bits = 0
+        if clip_cum is not None:
+            s0 = min(max(j, 0), len(x))
+            s1 = min(max(j + len(base.template), 0), len(x))
+            if clip_cum[s1] - clip_cum[s0] > 0:
+                bits |= flag_bit("clipped")
+        if snr < LOW_SNR_FACTOR * k_rec:
+            bits |= flag_bit("low_snr")
+        thr = max(k_noise * f_search, rel_threshold * float(env[q]))
+        js = int(round(a0 + pk.strongest_lag))
+        strongest = js != j
+        if ambiguous_near or (strongest and pk.height < AMBIGUOUS_MARGIN * thr):
+            bits |= flag_bit("ambiguous_first_path")
+        elif _near_miss(c, env, lo, [(j, lag - j), (js, a0 + pk.strongest_lag - js)], wf, thr):
+            bits |= flag_bit("ambiguous_first_path")
+        if eps > POOR_MATCH_EXCESS:
+            bits |= flag_bit("poor_match")
+        if tail or floor > REVERB_FACTOR * noise:
+            bits |= flag_bit("reverb_limited")
+        if lowband:
+            bits |= flag_bit("dc_or_lowband")
+        conf = min(pk.height / float(env[q]), 1.0)
+        rows.append((lag, sigma, 20.0 * math.log10(max(snr, 1e-300)), conf, bits))
     if not rows:
         return _empty(fs)
-    a = np.array(rows, dtype=np.float64)
+    rows.sort()
+    a = np.array([r[:4] for r in rows], dtype=np.float64)
     onset = a[:, 0]
+    flags = np.array([r[4] for r in rows], dtype=np.int64)
     return Arrivals(
-        onset, fs, a[:, 1], a[:, 2], np.minimum(a[:, 3], 1.0), onset[:, None].copy(), "template"
+        onset, fs, a[:, 1], a[:, 2], a[:, 3], onset[:, None].copy(), "template", None, flags
     )
 
 
-@functools.lru_cache(maxsize=8)
-def _filter(
-    probe: Probe, fs: float, block: int, look: int
-) -> tuple[MatchedFilter, np.ndarray, float]:
-    """The probe's matched filter at ``fs``, its self response cut to the search's reach,
-    and the template's RMS bandwidth (Hz, for the Cramér–Rao 1-sigma).
+def _select(
+    env: np.ndarray,
+    peaks: np.ndarray,
+    *,
+    noise: float,
+    k_rec: float,
+    k_noise: float,
+    rel_threshold: float,
+    sep: int,
+    look: int,
+    wf: _Filter,
+    expected: int | None,
+) -> list[tuple[int, int, float, bool]]:
+    """The arrivals: ``(strongest peak, cluster start, local floor, is a tail peak)``.
 
-    Cached per probe (by identity) and rate: the channels of a recording share one filter.
-    Only lags within ``look`` (plus a margin) of a path are ever compared with its side
-    lobes, so the self response is cut there (a 1 s sweep's is two seconds long).
+    Strongest first; a peak within ``sep`` of an accepted one is part of it. Each
+    candidate's **cluster** is the run of peaks above ``max(k_noise noise,
+    rel_threshold height)`` that reaches back from it with gaps of at most ``look``
+    (reflections and reverberation follow the direct sound without a break, at most
+    ``sep / 2`` back). The candidate must clear ``k_rec`` times the local floor just
+    before its cluster (:func:`_local_floor`: noise, or the reverberation or ringing of
+    what came before); a cluster reaching back to an accepted arrival, or a candidate
+    below its floor, is a tail peak: it suppresses weaker peaks within ``look`` and is
+    used only when ``expected`` asks for more arrivals than clear their floors.
     """
-    mf = MatchedFilter(probe.at_rate(fs), block=block)
-    sr = mf.self_response
+    order = peaks[np.argsort(-env[peaks], kind="stable")]
+    all_pk = _local_maxima(env)
+    taken: list[tuple[int, int, float, bool]] = []
+    tails: list[tuple[int, int, float]] = []
+    guard = max(look, 1)
+    cap = max(sep // 2, 1)
+    for p in order.tolist():
+        if any(abs(p - q) < sep for q, _, _, _ in taken):
+            continue
+        if any(abs(p - q) < guard for q, _, _ in tails):
+            continue
+        thr = max(k_noise * noise, rel_threshold * float(env[p]))
+        start = _cluster_start(env, all_pk, p, thr, look, cap)
+        floor = max(noise, _local_floor(env, start, look, wf.half_lobe))
+        into = any(q < p and start <= q for q, _, _, _ in taken)
+        if env[p] >= k_rec * floor and not into:
+            taken.append((p, start, floor, False))
+            if expected is not None and len(taken) == expected:
+                break
+        else:
+            tails.append((p, start, floor))
+    if expected is not None and len(taken) < expected:
+        for p, start, floor in tails:  # already strongest first
+            if all(abs(p - q) >= sep for q, _, _, _ in taken):
+                taken.append((p, start, floor, True))
+                if len(taken) == expected:
+                    break
+    return taken
+
+
+def _cluster_start(
+    env: np.ndarray, all_pk: np.ndarray, p: int, thr: float, look: int, cap: int
+) -> int:
+    """Earliest peak above ``thr`` reached from ``p`` backwards in steps of <= ``look``."""
+    if look <= 0:
+        return p
+    a = int(np.searchsorted(all_pk, p - cap))
+    b = int(np.searchsorted(all_pk, p))
+    idx = all_pk[a:b]
+    idx = idx[env[idx] >= thr]
+    if len(idx) == 0:
+        return p
+    gaps = np.diff(np.concatenate([idx, [p]]))
+    big = np.flatnonzero(gaps > look)
+    if len(big) == 0:
+        return int(idx[0])
+    k = int(big[-1]) + 1
+    return int(idx[k]) if k < len(idx) else p
+
+
+def _local_floor(env: np.ndarray, start: int, look: int, half_lobe: int) -> float:
+    """Rayleigh scale of the envelope in the stretch just before a cluster starting at
+    ``start``.
+
+    The window ends a main lobe before ``start`` and is ``max(2 look, 32 half lobes,
+    256)`` samples long (at most 4096): noise there, or the decaying tail of an earlier
+    arrival. 0 when the window is (almost) empty.
+    """
+    end = start - 2 * half_lobe - 1
+    n = min(4096, max(2 * look, 32 * half_lobe, 256))
+    lo = max(0, end - n)
+    if end - lo < 16:
+        return 0.0
+    return noise_level(env[lo:end])
+
+
+def _near_miss(c: np.ndarray, env: np.ndarray, lo: int, paths, wf: _Filter, thr: float) -> bool:
+    """An earlier peak in ``[lo, j)`` that nearly cleared the first-path threshold.
+
+    ``paths``: ``(index, sub-sample offset)`` of the chosen and the strongest path; their
+    own responses (side lobes) are subtracted first, as :func:`first_path` does.
+    """
+    j = min(p for p, _ in paths)
+    a = max(lo, 1)
+    b = j - wf.half_lobe
+    if b - a < 1:
+        return False
+    seg = env[a:b]
+    pk = np.flatnonzero((seg >= env[a - 1 : b - 1]) & (seg > env[a + 1 : b + 1]))
+    pk = pk[seg[pk] >= thr / AMBIGUOUS_MARGIN]
+    if len(pk) == 0:
+        return False
+    idx = a + pk
+    res = c[idx].copy()
+    m = len(wf.self_resp) // 2
+    for p, d in {(int(p), float(d)) for p, d in paths}:
+        R = _shifted(wf.self_resp, d)
+        alpha = c[p] / R[m]
+        k = idx - p + m
+        ok = (k >= 0) & (k < len(R))
+        res[ok] -= alpha * R[k[ok]]
+    return bool(np.any(np.abs(res) >= thr / AMBIGUOUS_MARGIN))
+
+
+def _shape(c: np.ndarray, j: int, d: float, wf: _Filter, floor: float) -> tuple[float, bool]:
+    """Unexplained energy fraction of the main lobe at ``j + d``, and a close rival path.
+
+    ``c`` over ``j +- half_lobe`` is fitted by ``alpha R(l - j - d)`` (``R``: the weighted
+    self response shifted by ``d`` in the frequency domain, ``alpha`` complex least
+    squares). Returns ``max(0, 1 - rho^2 - noise share)`` with ``rho`` the normalised
+    correlation, and whether the residual ``c - alpha R`` holds another local maximum
+    within ``+- 2 half_lobe`` that is at least :data:`AMBIGUOUS_REL` of the path's height
+    (a path of comparable strength within the probe's resolution).
+    """
+    K = wf.half_lobe
+    K2 = 2 * K
+    m = len(wf.self_resp) // 2
+    lo, hi = j - K2, j + K2 + 1
+    if lo < 0 or hi > len(c) or m < K2 + 1:
+        return 0.0, False
+    R = _shifted(wf.self_resp, d)[m - K2 : m + K2 + 1]
+    seg = c[lo:hi]
+    core = slice(K, K + 2 * K + 1)
+    r, s = R[core], seg[core]
+    rr = float(np.vdot(r, r).real)
+    ss = float(np.vdot(s, s).real)
+    if rr <= 0 or ss <= 0:
+        return 0.0, False
+    alpha = np.vdot(r, s) / rr
+    rho2 = abs(np.vdot(r, s)) ** 2 / (rr * ss)
+    noise_share = (2 * K + 1) * 2.0 * floor**2 / ss
+    eps = max(0.0, 1.0 - rho2 - noise_share)
+    res = np.abs(seg - alpha * R)
+    h = abs(alpha) * float(np.abs(R[K2]))
+    pk = np.flatnonzero((res[1:-1] >= res[:-2]) & (res[1:-1] > res[2:])) + 1
+    rival = bool(np.any(res[pk] >= AMBIGUOUS_REL * h)) if h > 0 else False
+    return eps, rival
+
+
+def _shifted(r: np.ndarray, d: float) -> np.ndarray:
+    """``r`` (band-limited) delayed by ``d`` samples (exact in the frequency domain)."""
+    n = len(r)
+    f = np.fft.fftfreq(n)
+    return np.fft.ifft(np.fft.fft(r) * np.exp(-2j * math.pi * f * d))
+
+
+def _lowband(spectra, band: tuple[float, float]) -> bool:
+    """Strong DC / low-band / out-of-band noise that the weighting removes.
+
+    The noise power more than :data:`LOWBAND_PSD_FACTOR` above the band's median PSD
+    (wherever it lies, DC included) exceeds :data:`LOWBAND_POWER_RATIO` times the noise
+    power in the probe's band.
+    """
+    f, N = spectra.f_hz, spectra.noise
+    inb = (f >= band[0]) & (f <= band[1])
+    if not inb.any():
+        return False
+    med = float(np.median(N[inb]))
+    if not med > 0:
+        return False
+    strong = np.maximum(N - LOWBAND_PSD_FACTOR * med, 0.0)
+    # DC's power itself (Welch's Hann window spreads it over bins 0 and 1).
+    return float(strong.sum()) > LOWBAND_POWER_RATIO * float(N[inb].sum())
+
+
+@dataclass(frozen=True, eq=False)
+class _Base:
+    """What a probe's detection at one rate shares across recordings."""
+
+    mf: MatchedFilter  # the unweighted filter
+    template: np.ndarray
+    band: tuple[float, float]
+    bp_taps: np.ndarray | None  # band-limiting FIR (None: not needed)
+    nperseg: int
+    template_psd: np.ndarray  # |S|^2 on the weights' grid
+
+
+@dataclass(frozen=True, eq=False)
+class _Filter:
+    """A (weighted) filter with what the arrival rules need of it."""
+
+    mf: MatchedFilter  # the probe's (unweighted, cached) matched filter
+    taps: np.ndarray | None  # zero-phase conditioning FIR applied to x first
+    self_resp: np.ndarray  # weighted complex self response, centred, cut
+    beta: float  # RMS bandwidth of the weighted spectrum about its centroid, cycles/sample
+    interp_rms: float  # RMS error of interp_peak on the self response, samples
+    half_lobe: int  # lags from the peak to where |R| falls below 1/4 of it
+
+    @property
+    def reach(self) -> int:
+        """Half length of the conditioning FIR, samples."""
+        return 0 if self.taps is None else (len(self.taps) - 1) // 2
+
+    def correlate(self, x: np.ndarray) -> np.ndarray:
+        """Analytic correlation of the conditioned ``x`` (weighted, band-limited)."""
+        return self.mf.correlate(x if self.taps is None else bandlimit(x, self.taps))
+
+
+@functools.lru_cache(maxsize=8)
+def _base(probe: Probe, fs: float, block: int) -> _Base:
+    """The probe's template, band, band-limiting FIR and PSD at ``fs`` (cached per probe
+    by identity and rate: the channels of a recording share them)."""
+    from scipy.signal import welch
+
+    h = probe.at_rate(fs)
+    mf = MatchedFilter(h, block=block, tail=ANALYTIC_TAIL)
+    lo, hi = probe.band_hz()
+    nyq = 0.5 * fs
+    hi = min(hi, 0.98 * nyq)
+    bp = None
+    if lo >= _MIN_HIGHPASS_HZ or hi < 0.9 * nyq:
+        bp = bandpass_taps(fs, lo if lo >= _MIN_HIGHPASS_HZ else 0.0, hi)
+    # ~40 Hz resolution: fine enough to follow a low-frequency noise shelf, short enough
+    # that the weighting FIR stays small next to the template.
+    nperseg = 1 << max(6, int(round(math.log2(fs / 40.0))))
+    nper = min(nperseg, len(h))
+    _, S2 = welch(h, fs=fs, nperseg=nper, nfft=nperseg, window="hann", noverlap=nper // 2)
+    return _Base(mf, h, (lo, hi), bp, nperseg, S2)
+
+
+@functools.lru_cache(maxsize=16)
+def _base_response(probe: Probe, fs: float, block: int, w: int) -> np.ndarray:
+    """The unweighted self response cut to lags ``+- w`` (cached)."""
+    sr = _base(probe, fs, block).mf.self_response
     mid = len(sr) // 2
-    w = min(mid, look + 256)
-    beta = rms_bandwidth_hz(mf.template, fs=fs)
-    return mf, np.ascontiguousarray(sr[mid - w : mid + w + 1]), beta
+    out = np.zeros(2 * w + 1, dtype=np.complex128)
+    k = min(w, mid)
+    out[w - k : w + k + 1] = sr[mid - k : mid + k + 1]
+    return out
+
+
+@functools.lru_cache(maxsize=8)
+def _unweighted(probe: Probe, fs: float, block: int, look: int) -> _Filter:
+    """The plain matched filter (``weighting="none"``), cached."""
+    return _weighted(probe, fs, block, None, look)
+
+
+def _weighted(probe: Probe, fs: float, block: int, W: np.ndarray | None, look: int) -> _Filter:
+    """The probe's filter weighted by ``W`` and band-limited: one zero-phase FIR on ``x``.
+
+    The weighted self response is the unweighted one through the same FIR; the RMS
+    bandwidth is that of ``|S|^2`` times the FIR's response on the weights' grid.
+    """
+    base = _base(probe, fs, block)
+    taps = None if W is None else zero_phase_taps(W, 2 * (len(W) - 1))
+    if base.bp_taps is not None and W is not None:
+        taps = np.convolve(base.bp_taps, taps)
+    hw = 0 if taps is None else (len(taps) - 1) // 2
+    w = look + 256
+    sr = _base_response(probe, fs, block, w + hw)
+    if taps is not None:
+        sr = np.convolve(sr.real, taps, "valid") + 1j * np.convolve(sr.imag, taps, "valid")
+    f = np.fft.rfftfreq(base.nperseg)  # cycles per sample
+    p = base.template_psd.copy()
+    if taps is not None:
+        n_big = base.nperseg * (1 << max(0, math.ceil(math.log2(len(taps) / base.nperseg))))
+        H = np.fft.rfft(np.roll(np.pad(taps, (0, n_big - len(taps))), -hw))
+        p *= np.abs(H[:: n_big // base.nperseg])
+    fc = float(f @ p / p.sum())
+    beta = math.sqrt(float(((f - fc) ** 2) @ p / p.sum()))
+    env = np.abs(sr)
+    mid = len(sr) // 2
+    top = env[mid]
+    k = 1
+    while mid + k < len(env) and env[mid + k] > 0.25 * top:
+        k += 1
+    half = max(2, k)
+    sr = np.ascontiguousarray(sr)
+    return _Filter(base.mf, taps, sr, beta, _interp_rms(sr), half)
+
+
+def _interp_rms(sr: np.ndarray, n: int = 16) -> float:
+    """RMS error (samples) of :func:`interp_peak` on ``sr`` delayed by ``k / n``."""
+    m = len(sr) // 2
+    errs = []
+    for k in range(n):
+        d = k / n
+        e = np.abs(_shifted(sr, d))
+        i = int(np.argmax(e))
+        errs.append(i + interp_peak(e, i)[0] - (m + d))
+    return max(float(np.sqrt(np.mean(np.square(errs)))), 1e-6)
 
 
 def _local_maxima(env: np.ndarray) -> np.ndarray:
