@@ -76,6 +76,10 @@ FLOOR_BLOCK_S = 0.25
 #: stretches' floors) marks an arrival
 #: ``reverb_limited`` (6 dB).
 REVERB_FLOOR_RATIO = 4.0
+#: Stretch before an onset searched for earlier sound of the beep's band, s, and the rise
+#: over the level before it that flags the arrival ``ambiguous_first_path``, dB.
+PRE_NEAR_S = 0.025
+PRE_RISE_DB = 6.0
 #: Out-of-band over in-band energy above which an arrival is flagged ``dc_or_lowband``.
 OOB_RATIO = 100.0
 
@@ -483,7 +487,7 @@ def detect_changepoint(
     threshold_db: float = 12.0,
     rise_db: float = 10.0,
     min_bursts: int | None = None,
-    background: bool = False,
+    background: bool = True,
     condition: bool = True,
 ) -> Arrivals:
     """Detect beep arrivals by STFT change points refined by an edge fit.
@@ -580,9 +584,7 @@ def detect_changepoint(
         if res is None:
             continue
         t0, s0, snr, conf, row, flags = res
-        fr = min(len(floor) - 1, max(0, int(t0 // hop)))
-        if quiet > 0 and floor[fr] > REVERB_FLOOR_RATIO * quiet:
-            flags |= flag_bit("reverb_limited")
+        flags |= _before_onset_flags(e, t0, hop=hop, n_win=n_win, fs=fs, quiet=quiet)
         if oob:
             flags |= flag_bit("dc_or_lowband")
         rows.append((t0, s0, snr, conf, row, flags))
@@ -599,6 +601,34 @@ def detect_changepoint(
         flags=np.array([r[5] for r in rows], dtype=np.int64),
     )
     return drop_echoes(arr, duration=beep.duration_s * fs)
+
+
+def _before_onset_flags(
+    e: np.ndarray, t0: float, *, hop: int, n_win: int, fs: float, quiet: float
+) -> int:
+    """Flags from the band energy just before an arrival's onset.
+
+    ``ambiguous_first_path``: within ``PRE_NEAR_S`` before the onset some stretch of four
+    frames rises ``PRE_RISE_DB`` above the level before that: sound of the beep's band
+    arrived earlier than the chosen onset (a direct path too weak to be timed, or the
+    onset taken on a reflection). ``reverb_limited``: the level before is
+    ``REVERB_FLOOR_RATIO`` times the recording's quiet level (the arrival rides on the
+    reverberation of an earlier one).
+    """
+    flags = 0
+    end = int(t0 - n_win) // hop  # last frame wholly before the onset
+    near = int(round(PRE_NEAR_S * fs / hop))
+    lo_near, lo_far = end - near, end - 2 * near
+    if lo_far < 0 or end <= lo_near + 4:
+        return flags
+    far = float(np.mean(e[lo_far:lo_near]))
+    seg = e[lo_near:end]
+    run = np.convolve(seg, np.ones(4) / 4, mode="valid")
+    if far > 0 and float(run.max()) > 10 ** (PRE_RISE_DB / 10) * far:
+        flags |= flag_bit("ambiguous_first_path")
+    if quiet > 0 and far > REVERB_FLOOR_RATIO * quiet:
+        flags |= flag_bit("reverb_limited")
+    return flags
 
 
 def _out_of_band(x: np.ndarray, cond: _Conditioner) -> bool:

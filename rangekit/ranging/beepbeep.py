@@ -15,6 +15,9 @@ mean of the two cross speaker-to-microphone distances. A sample-clock error e (p
 recording scales the interval it measures by (1 + e): with intervals of a few tenths of
 a second that is a few millimetres at 50 ppm.
 
+Flags: a range carries ``negative`` (D < 0), ``order`` (a device heard the other before
+itself) and every flag of the four arrivals it comes from (:data:`rangekit.types.ARRIVAL_FLAGS`).
+
 Uncertainty: sigma_D^2 = (c/2)^2 * (sum of the four onset variances, s^2)
 + (c/2)^2 * ((Delta_a * e)^2 + (Delta_b * e)^2), where Delta_i = t_i[b] - t_i[a] is the
 interval device i measured and ``e = clock_ppm * 1e-6`` the 1-sigma tolerance of a sample
@@ -32,7 +35,7 @@ import numpy as np
 
 from rangekit import _validate as V
 from rangekit.errors import DetectionError, IncompatibleInputError
-from rangekit.types import Arrivals, Range, RangeResult
+from rangekit.types import Arrivals, Range, RangeResult, flag_names
 
 __all__ = ["DEFAULT_CLOCK_PPM", "check_speed", "range_beepbeep", "self_distances"]
 
@@ -131,5 +134,10 @@ def range_beepbeep(
                 flags.append("negative")
             if t[a][b] <= t[a][a] or t[b][b] <= t[b][a]:
                 flags.append("order")
+            # The four arrivals' flags: whatever made one of them doubtful makes the range so.
+            bits = 0
+            for i, j in ((a, a), (a, b), (b, a), (b, b)):
+                bits |= int(arrivals[i].flags[j])
+            flags.extend(flag_names(bits))
             ranges.append(Range(a, b, float(d), float(sig), tuple(flags)))
     return RangeResult(tuple(ranges), c, tuple(arrivals))
