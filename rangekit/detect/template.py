@@ -52,6 +52,7 @@ Examples
 from __future__ import annotations
 
 import functools
+import itertools
 import math
 from dataclasses import dataclass
 
@@ -82,7 +83,7 @@ __all__ = [
     "DEFAULT_LOOKBACK_S",
     "DEFAULT_WEIGHTING",
     "FALSE_ALARM",
-    "POOR_MATCH_EXCESS",
+    "POOR_MATCH_COVERAGE",
     "detect_template",
 ]
 
@@ -98,6 +99,9 @@ DEFAULT_WEIGHTING = "ml"
 #: Stronger later paths whose side lobes are removed before an earlier peak counts as
 #: the first path (:func:`rangekit.detect.matched.first_path`, ``n_paths``).
 N_CLEAN_PATHS = 3
+#: A later peak is an earlier arrival's tail unless it exceeds that tail's extrapolated
+#: maximum by this factor (6 dB; :func:`_decay`).
+TAIL_MARGIN = 2.0
 #: ``low_snr``: the first path's SNR is below this multiple of the detection threshold.
 LOW_SNR_FACTOR = 2.0
 #: ``ambiguous_first_path``: another path within the resolution at least this fraction
@@ -105,10 +109,15 @@ LOW_SNR_FACTOR = 2.0
 AMBIGUOUS_REL = 0.5
 #: ... or the choice was within this factor of the first-path threshold.
 AMBIGUOUS_MARGIN = 1.5
-#: ``poor_match``: the fraction of the peak region's energy that the weighted self
-#: response does not explain, beyond the noise's share (chosen by measurement,
-#: ``docs/theory/probes.md``).
-POOR_MATCH_EXCESS = 0.5
+#: Sub-bands of the probe's band tested by the template-match check (:func:`_coverage`).
+N_SUBBANDS = 8
+#: A sub-band is present when its correlation at the onset reaches this fraction of the
+#: best sub-band's (per unit of expected share; -26 dB: the steep high-frequency roll-off of
+#: real loudspeakers over a wide band passes, see docs/theory/probes.md).
+SUBBAND_PRESENT = 0.05
+#: ``poor_match``: the present sub-bands hold less than this share of the template's
+#: (weighted) energy (chosen by measurement, ``docs/theory/probes.md``).
+POOR_MATCH_COVERAGE = 0.5
 #: ``reverb_limited``: the local floor before an arrival exceeds the recording's noise
 #: floor by this factor.
 REVERB_FACTOR = 2.0
@@ -228,7 +237,8 @@ def detect_template(
         )
         wf = _weighted(probe, fs, block, W, look)
         lowband = _lowband(spectra, base.band)
-    c = wf.correlate(x)
+    xc = wf.condition(x)
+    c = wf.mf.correlate(xc)
     env = np.abs(c)
     noise = max(noise_level(env), NOISE_FLOOR_REL * float(env.max()))
     # The noise envelope is Rayleigh: P(|c| > k noise) = exp(-k^2 / 2) per sample, so over
@@ -294,7 +304,7 @@ def detect_template(
             bits |= flag_bit("ambiguous_first_path")
         elif _near_miss(c, env, lo, [(j, lag - j), (js, a0 + pk.strongest_lag - js)], wf, thr):
             bits |= flag_bit("ambiguous_first_path")
-        if eps > POOR_MATCH_EXCESS:
+        if _coverage(xc, j, base, wf) < POOR_MATCH_COVERAGE:
             bits |= flag_bit("poor_match")
         if tail or floor > REVERB_FACTOR * noise:
             bits |= flag_bit("reverb_limited")
@@ -344,6 +354,7 @@ def _select(
     tails: list[tuple[int, int, float]] = []
     guard = max(look, 1)
     cap = max(sep // 2, 1)
+    decays: list[tuple[int, tuple[float, float] | None]] = []
     for p in order.tolist():
         if any(abs(p - q) < sep for q, _, _, _ in taken):
             continue
@@ -353,8 +364,12 @@ def _select(
         start = _cluster_start(env, all_pk, p, thr, look, cap)
         floor = max(noise, _local_floor(env, start, look, wf.half_lobe))
         into = any(q < p and start <= q for q, _, _, _ in taken)
+        into = into or any(
+            q < p and env[p] < TAIL_MARGIN * _tail_level(decay, p) for q, decay in decays
+        )
         if env[p] >= k_rec * floor and not into:
             taken.append((p, start, floor, False))
+            decays.append((p, _decay(env, p, sep, look)))
             if expected is not None and len(taken) == expected:
                 break
         else:
@@ -366,6 +381,30 @@ def _select(
                 if len(taken) == expected:
                     break
     return taken
+
+
+def _decay(env: np.ndarray, q: int, sep: int, look: int) -> tuple[float, float] | None:
+    """Decay of arrival ``q``'s tail: ``(a, b)`` with ``20 log10 level = a + b t`` (t in
+    samples), fitted to the maxima of 8 blocks of the envelope over ``[q + look, q +
+    sep)``; None when that stretch is too short or does not decay."""
+    lo, hi = q + max(look, 1), min(len(env), q + sep)
+    if hi - lo < 64:
+        return None
+    edges = np.linspace(lo, hi, 9).astype(np.int64)
+    t = 0.5 * (edges[:-1] + edges[1:])
+    m = np.array([env[a:b].max() for a, b in itertools.pairwise(edges)])
+    if np.any(m <= 0):
+        return None
+    b, a = np.polyfit(t, 20.0 * np.log10(m), 1)
+    return (float(a), float(b)) if b < 0 else None
+
+
+def _tail_level(decay: tuple[float, float] | None, p: int) -> float:
+    """The envelope maximum an earlier arrival's tail reaches at ``p`` (0 without one)."""
+    if decay is None:
+        return 0.0
+    a, b = decay
+    return 10.0 ** ((a + b * p) / 20.0)
 
 
 def _cluster_start(
@@ -467,6 +506,51 @@ def _shape(c: np.ndarray, j: int, d: float, wf: _Filter, floor: float) -> tuple[
     return eps, rival
 
 
+def _subband_edges(band: tuple[float, float], fs: float) -> np.ndarray:
+    """Edges of :data:`N_SUBBANDS` equal sub-bands of the probe's band, Hz."""
+    return np.linspace(band[0], min(band[1], 0.5 * fs), N_SUBBANDS + 1)
+
+
+def _coverage(xc: np.ndarray, j: int, base: _Base, wf: _Filter) -> float:
+    """Share of the template's energy whose sub-bands hold the arrival at onset ``j``.
+
+    The correlation of the conditioned recording with the template at lag ``j`` is split
+    into :data:`N_SUBBANDS` sub-bands of the probe's band (Parseval: ``r_b = sum over the
+    band's bins of 2 X S*``). For the probe that was played, every sub-band holds its
+    share of the arrival (``|r_b|`` proportional to the sub-band's expected share, up to
+    the transducers' ripple); a wrong template correlates with a recording only where
+    the played signal shares its time-frequency path: in a part of the band (a beep's
+    skirt, another sweep's overlap) or, for another chirp rate, a part at each lag.
+    Returns the expected share of the sub-bands whose ``|r_b| / share_b`` reaches
+    :data:`SUBBAND_PRESENT` of the largest. Noise fills every sub-band, so at low SNR
+    the coverage is high (a wrong template is then caught as ``low_snr``, not here).
+    """
+    h = base.template
+    n = len(h)
+    if j < 0 or j + n > len(xc):
+        return 1.0
+    X = np.fft.rfft(xc[j : j + n])
+    S = _template_spectrum(base)
+    f = np.fft.rfftfreq(n, 1.0 / (2.0 * base.band_fs))
+    edges = _subband_edges(base.band, 2.0 * base.band_fs)
+    cross = X * np.conj(S)
+    r = np.array([abs(cross[(f >= a) & (f < b)].sum()) for a, b in itertools.pairwise(edges)])
+    sh = wf.shares
+    ok = sh >= 0.25 / N_SUBBANDS  # sub-bands the probe hardly fills are not tested
+    if not ok.any():
+        return 1.0
+    a = np.where(ok, r / np.maximum(sh, 1e-300), 0.0)
+    present = a >= SUBBAND_PRESENT * float(a.max())
+    return float(sh[present & ok].sum() / sh[ok].sum())
+
+
+def _template_spectrum(base: _Base) -> np.ndarray:
+    """The template's spectrum (cached on ``base``)."""
+    if base.spectrum is None:
+        object.__setattr__(base, "spectrum", np.fft.rfft(base.template))
+    return base.spectrum
+
+
 def _shifted(r: np.ndarray, d: float) -> np.ndarray:
     """``r`` (band-limited) delayed by ``d`` samples (exact in the frequency domain)."""
     n = len(r)
@@ -503,6 +587,8 @@ class _Base:
     bp_taps: np.ndarray | None  # band-limiting FIR (None: not needed)
     nperseg: int
     template_psd: np.ndarray  # |S|^2 on the weights' grid
+    band_fs: float  # Nyquist frequency of the rate, Hz
+    spectrum: np.ndarray | None = None  # rfft of the template, filled on first use
 
 
 @dataclass(frozen=True, eq=False)
@@ -515,15 +601,20 @@ class _Filter:
     beta: float  # RMS bandwidth of the weighted spectrum about its centroid, cycles/sample
     interp_rms: float  # RMS error of interp_peak on the self response, samples
     half_lobe: int  # lags from the peak to where |R| falls below 1/4 of it
+    shares: np.ndarray  # expected share of the correlation per sub-band (sums to 1)
 
     @property
     def reach(self) -> int:
         """Half length of the conditioning FIR, samples."""
         return 0 if self.taps is None else (len(self.taps) - 1) // 2
 
+    def condition(self, x: np.ndarray) -> np.ndarray:
+        """``x`` through the conditioning FIR (weighted, band-limited), time origin kept."""
+        return x if self.taps is None else bandlimit(x, self.taps)
+
     def correlate(self, x: np.ndarray) -> np.ndarray:
-        """Analytic correlation of the conditioned ``x`` (weighted, band-limited)."""
-        return self.mf.correlate(x if self.taps is None else bandlimit(x, self.taps))
+        """Analytic correlation of the conditioned ``x``."""
+        return self.mf.correlate(self.condition(x))
 
 
 @functools.lru_cache(maxsize=8)
@@ -545,7 +636,7 @@ def _base(probe: Probe, fs: float, block: int) -> _Base:
     nperseg = 1 << max(6, int(round(math.log2(fs / 40.0))))
     nper = min(nperseg, len(h))
     _, S2 = welch(h, fs=fs, nperseg=nper, nfft=nperseg, window="hann", noverlap=nper // 2)
-    return _Base(mf, h, (lo, hi), bp, nperseg, S2)
+    return _Base(mf, h, (lo, hi), bp, nperseg, S2, nyq)
 
 
 @functools.lru_cache(maxsize=16)
@@ -588,6 +679,10 @@ def _weighted(probe: Probe, fs: float, block: int, W: np.ndarray | None, look: i
         p *= np.abs(H[:: n_big // base.nperseg])
     fc = float(f @ p / p.sum())
     beta = math.sqrt(float(((f - fc) ** 2) @ p / p.sum()))
+    edges = _subband_edges(base.band, fs)
+    fh = f * fs
+    shares = np.array([p[(fh >= a) & (fh < b)].sum() for a, b in itertools.pairwise(edges)])
+    shares = shares / max(float(shares.sum()), 1e-300)
     env = np.abs(sr)
     mid = len(sr) // 2
     top = env[mid]
@@ -596,7 +691,7 @@ def _weighted(probe: Probe, fs: float, block: int, W: np.ndarray | None, look: i
         k += 1
     half = max(2, k)
     sr = np.ascontiguousarray(sr)
-    return _Filter(base.mf, taps, sr, beta, _interp_rms(sr), half)
+    return _Filter(base.mf, taps, sr, beta, _interp_rms(sr), half, shares)
 
 
 def _interp_rms(sr: np.ndarray, n: int = 16) -> float:

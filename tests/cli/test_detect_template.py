@@ -11,7 +11,7 @@ import pytest
 import soundfile as sf
 from clihelp import assert_error, ok, run
 
-from rangekit.io.audio import write_audio
+from rangekit.io.audio import read_audio, write_audio
 from rangekit.signals.probe import read_probe
 from rangekit.sim.recording import pair_devices, render_beepbeep
 
@@ -109,3 +109,63 @@ def test_detect_template_usage_errors(tmp_path, sweep_file, extra, names):
 def test_detect_help_documents_template():
     out = " ".join(ok(run(["detect", "--help"])).stdout.split())
     assert "--template FILE" in out and "first-path" in out
+
+
+# --- one arrival per emission: --expected, --min-separation, flags (issue 16) ------------
+
+
+def test_detect_template_expected_gives_the_arrivals_range_uses(tmp_path, sweep_file):
+    """--expected N: exactly N rows per channel, the arrivals `range` times (one code path)."""
+    from rangekit.detect.template import detect_template
+
+    probe = read_probe(sweep_file)
+    x, onsets = _render(probe, 44100.0, distance_m=2.4, seed=12)
+    rec = tmp_path / "rec.wav"
+    write_audio(rec, x, fs=44100.0, subtype="FLOAT")
+    x = read_audio(rec)[0]  # what the CLI reads (float32)
+    for n in (1, 2):
+        r = ok(run(["detect", "--template", sweep_file, "--expected", n, rec, "--format", "json"]))
+        doc = json.loads(r.stdout)
+        assert doc["expected"] == n
+        rows = doc["arrivals"]
+        assert [a["channel"] for a in rows] == [0] * n + [1] * n
+        for ch in range(2):
+            lib = detect_template(x[:, ch], fs=44100.0, probe=probe, expected=n)
+            got = [a["onset_sample"] for a in rows if a["channel"] == ch]
+            np.testing.assert_allclose(got, lib.onset, rtol=0, atol=1e-9)
+            assert all(isinstance(a["flags"], list) for a in rows)
+    # n = 2 finds both plays (own first on device 0, the far one first on device 1).
+    got = np.array([a["onset_sample"] for a in rows]).reshape(2, 2)
+    np.testing.assert_allclose(got, onsets, atol=0.05)
+
+
+def test_detect_template_min_separation_groups_echoes(tmp_path, sweep_file):
+    """An echo 30 ms after each play: its own arrival with a short separation only."""
+    probe = read_probe(sweep_file)
+    fs = 44100.0
+    n = len(probe.samples)
+    rng = np.random.default_rng(3)
+    x = np.zeros(30000)
+    for s in (3000, 17000):
+        x[s : s + n] += probe.samples
+        e = s + int(0.03 * fs)
+        x[e : e + n] += 0.7 * probe.samples
+    x += 1e-3 * rng.standard_normal(len(x))
+    rec = tmp_path / "echo.wav"
+    write_audio(rec, x, fs=fs, subtype="FLOAT")
+
+    def onsets(*extra):
+        r = ok(run(["detect", "--template", sweep_file, *extra, rec, "--format", "json"]))
+        return [round(a["onset_sample"]) for a in json.loads(r.stdout)["arrivals"]]
+
+    # Default separation (the probe's 0.1 s): the echo is part of its play.
+    assert onsets() == [3000, 17000]
+    assert onsets("--min-separation", 0.02) == [3000, 3000 + 1323, 17000, 17000 + 1323]
+    assert onsets("--min-separation", 0.3) == [3000, 17000]
+
+
+@pytest.mark.parametrize("extra", [["--expected", "2"], ["--min-separation", "0.5"]])
+def test_detect_template_options_need_template(tmp_path, extra):
+    rec = tmp_path / "rec.wav"
+    write_audio(rec, np.zeros(1000), fs=44100.0)
+    assert_error(run(["detect", *extra, rec]), 2, extra[0], "--template")
