@@ -67,6 +67,10 @@ F_MIN = 15.0
 #: path up to ~20 dB weaker than the reflections that make the energy cross its
 #: threshold; 4 ms = 1.4 m of extra path).
 LOOKBACK_S = 0.004
+#: Model-error term of an onset's 1-sigma, samples at 44.1 kHz (scaled with fs): set on
+#: the pyroomacoustics corpus (``rangekit.experiments.realistic``) so that 2-sigma covers
+#: 90-97 % of the two-way errors (docs/accuracy.md).
+MODEL_SIGMA = 1.0
 #: Median burst SNR below which an arrival is flagged ``low_snr``, dB.
 LOW_SNR_DB = 10.0
 #: Length of the stretches with their own noise floor, s (automatic-gain steps, noise
@@ -79,7 +83,8 @@ REVERB_FLOOR_RATIO = 4.0
 #: Stretch before an onset searched for earlier sound of the beep's band, s, and the rise
 #: over the level before it that flags the arrival ``ambiguous_first_path``, dB.
 PRE_NEAR_S = 0.025
-PRE_RISE_DB = 6.0
+PRE_RISE_DB = 10.0
+PRE_RUN = 8
 #: Out-of-band over in-band energy above which an arrival is flagged ``dc_or_lowband``.
 OOB_RATIO = 100.0
 
@@ -163,16 +168,22 @@ class _Conditioner:
         return 1.0 if self.taps is None else 1.0 / float(self.taps @ self.taps)
 
     def segment(self, a: int, b: int) -> tuple[np.ndarray, np.ndarray | None, bool, int]:
-        """``(samples, mask, raw, offset)`` for the stretch ``[a, b)`` of the recording."""
+        """``(samples, mask, raw, offset)`` for the stretch ``[a, b)`` of the recording.
+
+        ``mask`` is None and ``raw`` False when the stretch is band-limited; ``raw`` is
+        True (and ``mask`` the clipped samples) when the fit must read raw samples.
+        """
         a, b = max(0, a), min(len(self.x), b)
-        if self.clipped is not None and np.any(self.clipped[a:b]):
-            return self.x[a:b], self.clipped[a:b], True, a
         if self.taps is None:
             return self.x[a:b], None, False, a
         h = (len(self.taps) - 1) // 2
         a0, b0 = max(0, a - h), min(len(self.x), b + h)
         y = bandlimit(self.x[a0:b0], self.taps)
         return y[a - a0 : a - a0 + (b - a)], None, False, a
+
+    def is_clipped(self, a: int, b: int) -> bool:
+        """Whether clipped samples lie in ``[a, b)``."""
+        return self.clipped is not None and bool(np.any(self.clipped[max(0, a) : b]))
 
 
 def beep_taps(beep: Beep, fs: float) -> np.ndarray:
@@ -217,7 +228,7 @@ def _fit_at(
     )
     if fit is None:
         return None, raw
-    return replace(fit, onset=fit.onset + off), raw and fit.n_masked > 0
+    return replace(fit, onset=fit.onset + off), raw
 
 
 def _fit_beep(
@@ -290,11 +301,32 @@ def _fit_beep(
         j = j0 + int(np.argmax(f[j0:j1]))
         if f[j] < (F_MIN if raw else f_min):
             continue
+        a_k = p + u0 + j  # integer onset in the recording
+        if cond.is_clipped(a_k - 2 * pre, a_k + 2 * post):
+            # Clipped: the band-limited edge is compressed (a clipped tone's fundamental
+            # saturates), so the onset is refined on the raw samples with the clipped ones
+            # left out and a constant and slope fitted (DC, low-frequency drift).
+            r0 = max(0, a_k - 4 * pre - post)
+            r1 = min(len(cond.x), a_k + 4 * post + pre)
+            fit = refine_onset(
+                cond.x[r0:r1],
+                fs=fs,
+                beep=beep,
+                a=a_k - r0,
+                f_stat=float(f[j]),
+                background=background,
+                mask=cond.clipped[r0:r1],
+                dc=True,
+            )
+            if fit is not None:
+                fits[k] = replace(fit, onset=fit.onset + r0)
+                clipped[k] = True
+            continue
         fit = refine_onset(
             seg,
             fs=fs,
             beep=beep,
-            a=p + u0 + j - off,
+            a=a_k - off,
             f_stat=float(f[j]),
             background=background,
             mask=mask,
@@ -302,7 +334,6 @@ def _fit_beep(
         )
         if fit is not None:
             fits[k] = replace(fit, onset=fit.onset + off)
-            clipped[k] = raw and fit.n_masked > 0
     return fits, clipped
 
 
@@ -443,6 +474,9 @@ def _combine(
     if ok.sum() > 1:
         chi2 = float(np.sum(wts * (est[ok] - t0) ** 2)) / (ok.sum() - 1)
         s0 *= math.sqrt(max(1.0, chi2))
+    # Model error: multipath inside the edge window that the fit cannot resolve, the same
+    # in every burst (so the bursts' scatter does not show it).
+    s0 = math.hypot(s0, MODEL_SIGMA * scale)
     row = np.full(k_b, np.nan)
     row[ks[ok]] = on[ok]
     snr = float(np.median([fits[k].snr_db for k in ks[ok]]))
@@ -608,10 +642,10 @@ def _before_onset_flags(
 ) -> int:
     """Flags from the band energy just before an arrival's onset.
 
-    ``ambiguous_first_path``: within ``PRE_NEAR_S`` before the onset some stretch of four
-    frames rises ``PRE_RISE_DB`` above the level before that: sound of the beep's band
-    arrived earlier than the chosen onset (a direct path too weak to be timed, or the
-    onset taken on a reflection). ``reverb_limited``: the level before is
+    ``ambiguous_first_path``: within ``PRE_NEAR_S`` before the onset some stretch of
+    ``PRE_RUN`` frames (about three independent windows) rises ``PRE_RISE_DB`` above the
+    level before that: sound of the beep's band arrived earlier than the chosen onset (a
+    direct path too weak to be timed, or the onset taken on a reflection). ``reverb_limited``: the level before is
     ``REVERB_FLOOR_RATIO`` times the recording's quiet level (the arrival rides on the
     reverberation of an earlier one).
     """
@@ -619,11 +653,11 @@ def _before_onset_flags(
     end = int(t0 - n_win) // hop  # last frame wholly before the onset
     near = int(round(PRE_NEAR_S * fs / hop))
     lo_near, lo_far = end - near, end - 2 * near
-    if lo_far < 0 or end <= lo_near + 4:
+    if lo_far < 0 or end <= lo_near + PRE_RUN:
         return flags
     far = float(np.mean(e[lo_far:lo_near]))
     seg = e[lo_near:end]
-    run = np.convolve(seg, np.ones(4) / 4, mode="valid")
+    run = np.convolve(seg, np.ones(PRE_RUN) / PRE_RUN, mode="valid")
     if far > 0 and float(run.max()) > 10 ** (PRE_RISE_DB / 10) * far:
         flags |= flag_bit("ambiguous_first_path")
     if quiet > 0 and far > REVERB_FLOOR_RATIO * quiet:

@@ -158,11 +158,13 @@ def bandlimit(x: np.ndarray, taps: np.ndarray) -> np.ndarray:
 def clip_mask(x: np.ndarray, *, rel_tol: float = 1e-4, min_run: int = 2) -> np.ndarray:
     """Boolean mask of clipped samples: runs at the recording's extreme values.
 
-    A sample is clipped when it lies within ``rel_tol`` of the peak-to-peak range of the
-    maximum (or of the minimum) and belongs to a run of at least ``min_run`` consecutive
-    such samples: an unclipped tone or sweep, sampled above twice its frequency, does not
-    stay at its crest for two samples, a clipped one does. Each rail is tested on its
-    own (converters and limiters clip asymmetrically, DC shifts the rails).
+    A rail (the maximum, or the minimum) is clipped when at least one run of ``min_run``
+    consecutive samples lies within ``rel_tol`` of the peak-to-peak range of it: an
+    unclipped tone or sweep, sampled above twice its frequency, does not stay at its crest
+    for two samples, a clipped one does somewhere. Then every sample at that rail is
+    clipped (a clipped 16 kHz tone at 44.1 kHz mostly touches the rail one sample per half
+    cycle). Each rail is tested on its own (converters and limiters clip asymmetrically,
+    DC shifts the rails).
 
     Examples
     --------
@@ -183,7 +185,8 @@ def clip_mask(x: np.ndarray, *, rel_tol: float = 1e-4, min_run: int = 2) -> np.n
     for at_rail, rail in ((x >= hi - tol, hi), (x <= lo + tol, lo)):
         if rail == 0.0:
             continue  # digital silence at a rail is not clipping
-        mask |= _runs_at_least(at_rail, min_run)
+        if _runs_at_least(at_rail, min_run).any():
+            mask |= at_rail
     return mask
 
 
