@@ -645,9 +645,9 @@ def _before_onset_flags(
     ``ambiguous_first_path``: within ``PRE_NEAR_S`` before the onset some stretch of
     ``PRE_RUN`` frames (about three independent windows) rises ``PRE_RISE_DB`` above the
     level before that: sound of the beep's band arrived earlier than the chosen onset (a
-    direct path too weak to be timed, or the onset taken on a reflection). ``reverb_limited``: the level before is
-    ``REVERB_FLOOR_RATIO`` times the recording's quiet level (the arrival rides on the
-    reverberation of an earlier one).
+    direct path too weak to be timed, or the onset taken on a reflection).
+    ``reverb_limited``: the level before is ``REVERB_FLOOR_RATIO`` times the recording's
+    quiet level (the arrival rides on the reverberation of an earlier one).
     """
     flags = 0
     end = int(t0 - n_win) // hop  # last frame wholly before the onset
