@@ -350,7 +350,7 @@ def welch_spectra(
     max_segments: int = 256,
     min_segments: int = 32,
     q: float = 20.0,
-    rel_zero: float = 1e-12,
+    rel_zero: float = 1e-18,
 ) -> Spectra:
     """Noise and mean PSD of ``x`` from Hann-windowed, non-overlapping segments.
 
@@ -381,7 +381,8 @@ def welch_spectra(
     q : float
         Percentile of the noise estimate.
     rel_zero : float
-        Relative energy below which a segment counts as digital silence.
+        Relative energy below which a segment counts as digital silence (default 1e-18,
+        -180 dB: exact zeros and rounding residue, never a quiet noise floor).
 
     Returns
     -------

@@ -102,6 +102,9 @@ N_CLEAN_PATHS = 3
 #: A later peak is an earlier arrival's tail unless it exceeds that tail's extrapolated
 #: maximum by this factor (6 dB; :func:`_decay`).
 TAIL_MARGIN = 2.0
+#: Fewest samples at the rails (:func:`~rangekit.detect.condition.clip_mask`) that make
+#: a recording clipped.
+MIN_CLIPPED = 8
 #: ``low_snr``: the first path's SNR is below this multiple of the detection threshold.
 LOW_SNR_FACTOR = 2.0
 #: ``ambiguous_first_path``: another path within the resolution at least this fraction
@@ -226,7 +229,7 @@ def detect_template(
         wf = _unweighted(probe, fs, block, look)
         lowband = False
     else:
-        mask = clip_mask(x)
+        mask = _clipped(x)
         if mask.any():
             x = np.where(mask, 0.0, x)
         else:
@@ -323,6 +326,19 @@ def detect_template(
     )
 
 
+def _clipped(x: np.ndarray) -> np.ndarray:
+    """Clipped samples: :func:`~rangekit.detect.condition.clip_mask` (runs at the rails),
+    and single samples exactly at a rail when at least :data:`MIN_CLIPPED` are (a clipped
+    17-20 kHz sweep at 44.1 kHz stays at the rail one sample per half cycle; a sampled
+    unclipped signal reaches its exact extreme once)."""
+    mask = clip_mask(x)
+    for rail in (float(x.max()), float(x.min())):
+        at = x == rail
+        if rail != 0.0 and int(at.sum()) >= MIN_CLIPPED:
+            mask |= at
+    return mask
+
+
 def _select(
     env: np.ndarray,
     peaks: np.ndarray,
@@ -354,7 +370,7 @@ def _select(
     tails: list[tuple[int, int, float]] = []
     guard = max(look, 1)
     cap = max(sep // 2, 1)
-    decays: list[tuple[int, tuple[float, float] | None]] = []
+    decays: list[tuple[int, tuple[float, float, float] | None]] = []
     for p in order.tolist():
         if any(abs(p - q) < sep for q, _, _, _ in taken):
             continue
@@ -383,11 +399,19 @@ def _select(
     return taken
 
 
-def _decay(env: np.ndarray, q: int, sep: int, look: int) -> tuple[float, float] | None:
-    """Decay of arrival ``q``'s tail: ``(a, b)`` with ``20 log10 level = a + b t`` (t in
-    samples), fitted to the maxima of 8 blocks of the envelope over ``[q + look, q +
-    sep)``; None when that stretch is too short or does not decay."""
-    lo, hi = q + max(look, 1), min(len(env), q + sep)
+def _decay(env: np.ndarray, q: int, sep: int, look: int) -> tuple[float, float, float] | None:
+    """Upper envelope of arrival ``q``'s tail: ``(a, b, t_end)`` with ``20 log10 level =
+    a + b t`` (``t`` in samples) valid up to ``t_end``.
+
+    A line fitted to the maxima of 8 blocks of the envelope over ``[q + look, q + sep)``
+    (the stretch that belongs to ``q`` by the separation) and raised to pass over all of
+    them: echoes and ringing
+    inside that stretch lie under it, and it extrapolates the tail's decay beyond (a tail
+    that does not decay is its maximum, over the stretch only). None when the stretch is
+    too short.
+    """
+    lo = q + max(look, 1)
+    hi = min(len(env), q + sep)
     if hi - lo < 64:
         return None
     edges = np.linspace(lo, hi, 9).astype(np.int64)
@@ -395,15 +419,19 @@ def _decay(env: np.ndarray, q: int, sep: int, look: int) -> tuple[float, float] 
     m = np.array([env[a:b].max() for a, b in itertools.pairwise(edges)])
     if np.any(m <= 0):
         return None
-    b, a = np.polyfit(t, 20.0 * np.log10(m), 1)
-    return (float(a), float(b)) if b < 0 else None
+    y = 20.0 * np.log10(m)
+    b, a = np.polyfit(t, y, 1)
+    if b >= 0:  # echoes late in the stretch: flat at their maximum, up to its end only
+        return float(y.max()), 0.0, float(hi)
+    a += float(np.max(y - (a + b * t)))
+    return float(a), float(b), math.inf
 
 
-def _tail_level(decay: tuple[float, float] | None, p: int) -> float:
+def _tail_level(decay: tuple[float, float, float] | None, p: int) -> float:
     """The envelope maximum an earlier arrival's tail reaches at ``p`` (0 without one)."""
-    if decay is None:
+    if decay is None or p > decay[2]:
         return 0.0
-    a, b = decay
+    a, b, _ = decay
     return 10.0 ** ((a + b * p) / 20.0)
 
 

@@ -1,0 +1,109 @@
+"""Issue 16 acceptance: two-way sweeps in pyroomacoustics rooms with low-frequency noise.
+
+Exchanges rendered independently of rangekit's simulator
+(:func:`rangekit.experiments.realistic.render_exchange`: pyroomacoustics image sources of
+order 6-10, absorption 0.15-0.35, air absorption, phones at hand height 0.5-7 m apart,
+independent recording starts; clocks exact here), white noise 20 dB below the far
+arrival, then low-frequency noise 30 dB above that floor (brown, 20-200 Hz) and a DC
+offset of 0.1 % full scale (:func:`rangekit.sim.impair.impair`). Probes: linear sweeps
+17-20 kHz and 20 Hz-20 kHz, 0.1 s and 1 s. Ranged by ``range_channels(probe=...)`` (the
+arrivals of ``detect_template(expected=2)``), after a one-distance calibration (three
+exchanges at 1 m, offset only).
+
+Measured (seed 16, 32 exchanges, 8 per sweep; ``python tests/detect/measure_template.py
+rooms`` reruns this corpus and a larger one): far arrival found in 32 / 32; calibrated
+|error| median 0.30 mm, p90 4.4 mm, max 41.9 mm (a 17-20 kHz, 0.1 s exchange, flagged
+``ambiguous_first_path``); none above 10 cm. The bounds sit within about 2x of these.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+pytest.importorskip("pyroomacoustics")
+
+from rangekit.errors import DetectionError
+from rangekit.io.audio import Channel
+from rangekit.ranging.calibration import Measurement, fit_calibration
+from rangekit.ranging.pipeline import range_channels
+from rangekit.signals.probe import linear_sweep
+
+SWEEPS = [
+    (17000.0, 20000.0, 0.1),
+    (20.0, 20000.0, 0.1),
+    (17000.0, 20000.0, 1.0),
+    (20.0, 20000.0, 1.0),
+]
+SELF_M = 0.12
+N_PER_SWEEP = 8
+
+
+def _exchange(rng, probe, distance_m):
+    from rangekit.experiments.realistic import draw_room, render_exchange
+    from rangekit.sim.impair import impair, parse_impairments
+
+    lo_x = max(4.0, distance_m + 1.5)
+    room = draw_room(rng, size_lo_m=(lo_x, 3.0, 2.5), size_hi_m=(lo_x + 6.0, 10.0, 4.0),
+                     max_order=(6, 10))  # fmt: skip
+    ex = render_exchange(
+        rng, room=room, distance_m=distance_m, signal=probe, ppm=0.0,
+        self_distance_m=(SELF_M, SELF_M), gap_s=(0.1, 0.3), tail_s=0.2,
+    )  # fmt: skip
+    imp = parse_impairments("lf_db=30,dc=0.001")
+    chans = []
+    for i, x in enumerate(ex.recordings):
+        floor = 2.0 * ex.info["noise_sigma"][i] ** 2 / ex.fs
+        y = impair(x, fs=ex.fs, impairments=imp, rng=rng, floor_psd=floor).x
+        chans.append(Channel(y, ex.fs, f"dev{i}"))
+    return chans, ex
+
+
+def _flags(chans, probe):
+    from rangekit.detect.template import detect_template
+
+    names = set()
+    for ch in chans:
+        a = detect_template(ch.x, fs=ch.fs, probe=probe, expected=2)
+        for i in range(len(a)):
+            names |= set(a.flag_names(i))
+    return names - {"dc_or_lowband"}
+
+
+def corpus(seed: int = 16):
+    """Calibrated two-way errors (m), whether each has a (non-informational) flag, and
+    the number of exchanges whose far arrival was not found."""
+    rng = np.random.default_rng(seed)
+    errs, flagged, failed = [], [], 0
+    for f0, f1, dur in SWEEPS:
+        probe = linear_sweep(f0, f1, dur)
+        meas = []
+        for k in range(3):
+            chans, ex = _exchange(rng, probe, 1.0)
+            r = range_channels(chans, probe=probe, speed_m_s=ex.speed_m_s, clock_ppm=0.0)
+            d = r.ranges[0].distance_m
+            meas.append(Measurement(f"cal{k}", ex.distance_m, d / ex.speed_m_s, 1e-5))
+        cal = fit_calibration(meas, scheme="beepbeep", speed_m_s=ex.speed_m_s, fit_speed=False)
+        for _ in range(N_PER_SWEEP):
+            chans, ex = _exchange(rng, probe, float(rng.uniform(0.5, 7.0)))
+            try:
+                r = range_channels(chans, probe=probe, speed_m_s=ex.speed_m_s, clock_ppm=0.0)
+            except DetectionError:  # a failure is counted, not raised
+                failed += 1
+                continue
+            d = r.ranges[0].distance_m
+            got, _ = cal.distance(d / ex.speed_m_s, 1e-5, speed_m_s=ex.speed_m_s)
+            errs.append(got - ex.distance_m)
+            flagged.append(bool(_flags(chans, probe)))
+    return np.abs(errs), np.array(flagged), failed
+
+
+def test_sweeps_with_lf_noise_in_rooms_after_one_distance_calibration():
+    err, flagged, failed = corpus()
+    n = len(SWEEPS) * N_PER_SWEEP
+    assert failed == 0 and len(err) == n  # far arrival found: 32 / 32 measured
+    assert np.median(err) <= 0.0006, err  # measured 0.30 mm (issue bound 1 cm)
+    assert np.percentile(err, 90) <= 0.009, err  # measured 4.4 mm (issue bound 5 cm)
+    assert not np.any((err > 0.10) & ~flagged), err  # none above 10 cm unflagged
+    assert not np.any((err > 0.02) & ~flagged), err  # measured: the one > 2 cm is flagged
+    assert err.max() <= 0.08, err  # measured 41.9 mm
