@@ -96,6 +96,13 @@ calibration_option = click.option(
     "at the end, after the whole recording); PPM,...: known rates, one per device (device 0 "
     "first) or one per device after device 0; off: no correction [off].",
 )
+@click.option(
+    "--strict",
+    is_flag=True,
+    help="Refuse (exit 10, nothing written) when a range carries a flag that makes it "
+    "doubtful (clipped, low_snr, ambiguous_first_path, inconsistent_bursts, poor_match, "
+    "reverb_limited, negative, order); beepbeep without --series.",
+)
 @format_option
 @output_option
 @debug_option
@@ -114,6 +121,7 @@ def range_cmd(
     exchange_s,
     skew_s,
     clock_rate,
+    strict,
     fmt,
     output,
     **kw,
@@ -140,6 +148,7 @@ def range_cmd(
     Examples:
       rangekit range exchange.wav --self-distance 0.1
       rangekit range phone0.wav phone1.wav phone2.wav --format json
+      rangekit range exchange.wav --self-distance 0.1 --strict
       rangekit range --scheme oneway beacons.wav --period 0.2 --tx-order 0,1,2,3,4,5
       rangekit range --scheme echo srf02.wav --period 0.07 --format json
       rangekit range --series phone_log.wav --self-distance 0.1 --format csv -o ranges.csv
@@ -155,6 +164,8 @@ def range_cmd(
         for opt, v in only:
             if v is not None:
                 raise click.UsageError(f"{opt} applies to --series with --scheme beepbeep only")
+    if strict and (series or scheme != "beepbeep"):
+        raise click.UsageError("--strict applies to --scheme beepbeep without --series")
     series_opts = {"block_s": block_s} if series else None
     from rangekit_cli._options import load_template
 
@@ -235,6 +246,10 @@ def range_cmd(
         probe=probe,
         calibration=cal,
     )
+    if strict:
+        from rangekit.ranging.beepbeep import refuse_doubtful
+
+        refuse_doubtful(result, what=", ".join(str(f) for f in files))
     meta = {
         "scheme": scheme,
         "detector": "template" if probe is not None else detector,

@@ -23,6 +23,7 @@ __all__ = [
     "InvalidParameterError",
     "LogFormatError",
     "RangekitError",
+    "UnreliableResultError",
 ]
 
 
@@ -87,3 +88,13 @@ class CalibrationError(RangekitError):
     """
 
     exit_code = 7
+
+
+class UnreliableResultError(RangekitError):
+    """A result carries flags that make it doubtful and strict mode refuses it (exit 10).
+
+    Raised only when asked (``--strict``): by default flagged results are returned with
+    their flags. The message names each refused result and its flags.
+    """
+
+    exit_code = 10

@@ -262,18 +262,33 @@ def _fit_beep(
     margin = int(math.ceil(48 * fs / 44100.0 + beep.taper_s * fs)) + 8
     pre, post = _window(fs, beep, None, None)
     segs, stats, widened = [], [], []
+    scale_raw = cond.f_scale ** (2.0 / 3.0)
     for k in range(beep.n_bursts):
         p = int(round(a + k * spacing))
         seg, mask, raw, off = cond.segment(p + u0 - margin, p + u1 + margin)
-        lo = max(p + u0 - off, pre)
-        hi = min(p + u1 - off, len(seg) - post - 4)
-        f = np.zeros(width)
-        if hi >= lo:
-            fk = edge_statistic(
-                seg, fs=fs, beep=beep, lo=lo, hi=hi, background=background, mask=mask, dc=raw
+        f = _stat_on(seg, None, False, off, p, u0, width, fs=fs, beep=beep, bg=background)
+        if cond.is_clipped(p + u0 - margin, p + u1 + margin):
+            # Clipped: a clipped tone's band-limited edge saturates (and its aliased
+            # harmonics reach the band), so the statistic is also computed on the raw
+            # samples with the clipped ones left out and a constant and slope fitted. The
+            # raw one (put on the band-limited scale) is used when it finds an edge at
+            # all; interference it cannot model can hide it, and then the band-limited
+            # one (biased by a few samples, but found) serves.
+            a0, b0 = max(0, p + u0 - margin), min(len(cond.x), p + u1 + margin)
+            f_raw = _stat_on(
+                cond.x[a0:b0],
+                cond.clipped[a0:b0],
+                True,
+                a0,
+                p,
+                u0,
+                width,
+                fs=fs,
+                beep=beep,
+                bg=background,
             )
-            j0 = lo + off - p - u0
-            f[j0 : j0 + len(fk)] = fk
+            if scale_raw * float(f_raw.max()) >= F_MIN * scale_raw:
+                f = scale_raw * f_raw
         segs.append((seg, mask, raw, off, p))
         stats.append(f)
         widened.append(maximum_filter1d(f, size=5, mode="constant"))
@@ -296,10 +311,11 @@ def _fit_beep(
     u = first_peak(joint, 0.1, f_joint)
     if joint[u] < f_joint:
         return fits, clipped
+
     for k, ((seg, mask, raw, off, p), f) in enumerate(zip(segs, stats, strict=True)):
         j0, j1 = max(0, u - 2), min(width, u + 3)
         j = j0 + int(np.argmax(f[j0:j1]))
-        if f[j] < (F_MIN if raw else f_min):
+        if f[j] < f_min:
             continue
         a_k = p + u0 + j  # integer onset in the recording
         if cond.is_clipped(a_k - 2 * pre, a_k + 2 * post):
@@ -318,10 +334,12 @@ def _fit_beep(
                 mask=cond.clipped[r0:r1],
                 dc=True,
             )
+            clipped[k] = True
             if fit is not None:
                 fits[k] = replace(fit, onset=fit.onset + r0)
-                clipped[k] = True
-            continue
+                continue
+            # Too few unclipped samples: fall back to the band-limited edge (biased by a
+            # few samples, and flagged).
         fit = refine_onset(
             seg,
             fs=fs,
@@ -335,6 +353,32 @@ def _fit_beep(
         if fit is not None:
             fits[k] = replace(fit, onset=fit.onset + off)
     return fits, clipped
+
+
+def _stat_on(
+    seg: np.ndarray,
+    mask: np.ndarray | None,
+    raw: bool,
+    off: int,
+    p: int,
+    u0: int,
+    width: int,
+    *,
+    fs: float,
+    beep: Beep,
+    bg: bool,
+) -> np.ndarray:
+    """Edge statistic of ``seg`` (recording samples from ``off``) at onsets ``p + u0 ...
+    p + u0 + width - 1``; 0 where the window does not fit."""
+    pre, post = _window(fs, beep, None, None)
+    lo = max(p + u0 - off, pre)
+    hi = min(p + u0 + width - 1 - off, len(seg) - post - 4)
+    f = np.zeros(width)
+    if hi >= lo:
+        fk = edge_statistic(seg, fs=fs, beep=beep, lo=lo, hi=hi, background=bg, mask=mask, dc=raw)
+        j0 = lo + off - p - u0
+        f[j0 : j0 + len(fk)] = fk
+    return f
 
 
 def find_bursts(

@@ -143,8 +143,7 @@ def fit_edge(
         Smallest F statistic taken as an edge (noise alone exceeds 15 with probability
         about e^-15 per offset).
     mask : ndarray of bool, optional
-        Samples of ``x`` to leave out of the fit (clipped samples): stage 1 sees them as
-        zeros, stage 2 drops them from the least squares.
+        Samples of ``x`` to leave out of the fit (clipped samples), in both stages.
     dc : bool
         Also fit a constant and a slope (a recording that was not band-limited: DC offset
         and low-frequency drift).
@@ -225,9 +224,11 @@ def edge_statistic(
     kw = {"w": 2.0 * math.pi * beep.f_hz / fs, "fs": fs, "beep": beep, "dc": dc}
     k = np.arange(length, dtype=np.float64)
     seg = x[lo - pre : hi + post]
-    if mask is not None and np.any(mask[lo - pre : hi + post]):
-        seg = np.where(mask[lo - pre : hi + post], 0.0, seg)
     frames = np.lib.stride_tricks.sliding_window_view(seg, length)
+    cols = _basis(k, float(pre), background=background, **kw)
+    n_par = cols.shape[1]
+    if mask is not None and np.any(mask[lo - pre : hi + post]):
+        return _masked_statistic(frames, mask[lo - pre : hi + post], cols)
     total = np.einsum("ij,ij->i", frames, frames)
 
     def explained_by(cols: np.ndarray) -> np.ndarray:
@@ -235,14 +236,41 @@ def edge_statistic(
         proj = frames @ q
         return np.einsum("ij,ij->i", proj, proj)
 
-    cols = _basis(k, float(pre), background=background, **kw)
     full = explained_by(cols)
     base = explained_by(cols[:, 2:]) if cols.shape[1] > 2 else 0.0
-    n_par = cols.shape[1]
     # Residual floored at 1e-12 of the window energy: noiseless input must not turn
     # rounding residue into a statistic.
     resid = np.maximum(total - full, 1e-12 * total + 1e-300) / (length - n_par)
     return np.maximum(full - base, 0.0) / 2.0 / resid
+
+
+def _masked_statistic(frames: np.ndarray, mask: np.ndarray, cols: np.ndarray) -> np.ndarray:
+    """The edge's partial F statistic per window with the masked samples left out.
+
+    Each window has its own design (its unmasked rows), so the normal equations are
+    formed per window: ``G_i = B^T W_i B``, ``g_i = B^T W_i d_i`` with ``W_i`` the
+    window's 0/1 weights; a window with too few unmasked samples gets 0.
+    """
+    w = 1.0 - np.lib.stride_tricks.sliding_window_view(mask.astype(np.float64), frames.shape[1])
+    wd = w * frames
+    n_par = cols.shape[1]
+    n_keep = w.sum(axis=1)
+    total = np.einsum("ij,ij->i", wd, frames)
+
+    def explained_by(b: np.ndarray) -> np.ndarray:
+        gram = np.einsum("il,lp,lq->ipq", w, b, b)
+        p = b.shape[1]
+        gram += np.eye(p) * (1e-12 * np.trace(gram, axis1=1, axis2=2)[:, None, None] / p + 1e-300)
+        g = wd @ b
+        coef = np.linalg.solve(gram, g[:, :, None])[:, :, 0]
+        return np.einsum("ip,ip->i", g, coef)
+
+    full = explained_by(cols)
+    base = explained_by(cols[:, 2:]) if n_par > 2 else 0.0
+    dof = n_keep - n_par
+    resid = np.maximum(total - full, 1e-12 * total + 1e-300) / np.maximum(dof, 1.0)
+    f = np.maximum(full - base, 0.0) / 2.0 / resid
+    return np.where(dof >= 8, f, 0.0)
 
 
 def refine_onset(

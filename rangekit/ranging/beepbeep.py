@@ -34,10 +34,17 @@ from collections.abc import Sequence
 import numpy as np
 
 from rangekit import _validate as V
-from rangekit.errors import DetectionError, IncompatibleInputError
-from rangekit.types import Arrivals, Range, RangeResult, flag_names
+from rangekit.errors import DetectionError, IncompatibleInputError, UnreliableResultError
+from rangekit.types import INFO_FLAGS, Arrivals, Range, RangeResult, flag_names
 
-__all__ = ["DEFAULT_CLOCK_PPM", "check_speed", "range_beepbeep", "self_distances"]
+__all__ = [
+    "DEFAULT_CLOCK_PPM",
+    "check_speed",
+    "doubtful_flags",
+    "range_beepbeep",
+    "refuse_doubtful",
+    "self_distances",
+]
 
 #: Default 1-sigma sample-clock tolerance of a device, ppm.
 DEFAULT_CLOCK_PPM = 30.0
@@ -141,3 +148,31 @@ def range_beepbeep(
             flags.extend(flag_names(bits))
             ranges.append(Range(a, b, float(d), float(sig), tuple(flags)))
     return RangeResult(tuple(ranges), c, tuple(arrivals))
+
+
+def doubtful_flags(r: Range) -> tuple[str, ...]:
+    """The flags of ``r`` that make it doubtful (all but :data:`rangekit.types.INFO_FLAGS`)."""
+    return tuple(f for f in r.flags if f not in INFO_FLAGS)
+
+
+def refuse_doubtful(result: RangeResult, *, what: str = "the recording") -> RangeResult:
+    """Return ``result``, or raise UnreliableResultError if any range has a doubtful flag.
+
+    Examples
+    --------
+    >>> from rangekit.types import Range, RangeResult
+    >>> refuse_doubtful(RangeResult((Range(0, 1, 2.0, 0.01, ("dc_or_lowband",)),), 343.0))
+    ... # doctest: +ELLIPSIS
+    RangeResult(...)
+    >>> refuse_doubtful(RangeResult((Range(0, 1, 2.0, 0.01, ("clipped",)),), 343.0), what="x")
+    Traceback (most recent call last):
+    ...
+    rangekit.errors.UnreliableResultError: strict: x: pair 0-1 (2.000 m) is flagged clipped
+    """
+    bad = [(r, doubtful_flags(r)) for r in result.ranges if doubtful_flags(r)]
+    if bad:
+        parts = [
+            f"pair {r.a}-{r.b} ({r.distance_m:.3f} m) is flagged {','.join(f)}" for r, f in bad
+        ]
+        raise UnreliableResultError(f"strict: {what}: " + "; ".join(parts))
+    return result
