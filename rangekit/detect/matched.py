@@ -206,41 +206,11 @@ class MatchedFilter:
         from scipy import fft as sfft
 
         self._fft = sfft
-        self._g = g
         # Correlation with g = convolution with conj(g) reversed; the FFT of the taps
         # placed at [0, n_taps) correlates x_seg[j + k] with g[k].
         self._gr = np.conj(sfft.rfft(g.real, n))
         self._gi = -np.conj(sfft.rfft(g.imag, n))  # conj(g) has imaginary part -g.imag
         self._self_response: np.ndarray | None = None
-
-    def prefiltered(self, taps: np.ndarray) -> MatchedFilter:
-        """This filter applied to ``x`` after the zero-phase FIR ``taps`` (odd length).
-
-        ``prefiltered(w).correlate(x)`` equals ``correlate(bandlimit(x, w))`` (the FIR
-        applied with its group delay removed, :func:`rangekit.detect.condition.bandlimit`)
-        up to the treatment of the array's ends: the FIR is folded into the correlation
-        taps (``g' = g * w``, ``(len(w) - 1) / 2`` more samples of look-back), so the
-        recording passes through one FFT per block as before. A real, even frequency
-        response (symmetric ``taps``) changes the weighting of each frequency, never the
-        time origin: the correlation with the filter's own template still peaks at lag 0
-        (its :attr:`self_response` is the weighted one).
-        """
-        w = V.signal_1d("taps", taps)
-        if len(w) % 2 != 1:
-            raise InvalidParameterError(f"taps must have odd length, got {len(w)}")
-        from scipy.signal import oaconvolve
-
-        out = object.__new__(MatchedFilter)
-        out.template = self.template
-        out.energy = self.energy
-        g = self._g
-        gw = (
-            oaconvolve(g.real, w) + 1j * oaconvolve(g.imag, w)
-            if len(g) > 4 * len(w) and len(w) > 64
-            else np.convolve(g, w)
-        )
-        out._set_fir(np.ascontiguousarray(gw), self.pre + (len(w) - 1) // 2, self.block)
-        return out
 
     @property
     def self_response(self) -> np.ndarray:

@@ -6,34 +6,39 @@ room or transducer (theory and measurements: ``docs/theory/probes.md``):
 
 1. **Template**: the probe at the recording's rate (:meth:`Probe.at_rate`: polyphase
    resampling when the rates differ, an error when its band does not fit).
-2. **Conditioning**: clipped samples (:func:`~rangekit.detect.condition.clip_mask`) are
-   zeroed, so they stay out of the correlation; the noise spectrum is estimated from the
-   recording (:func:`~rangekit.detect.matched.welch_spectra`, median over segments) and
+2. **Conditioning**: clipped samples (:func:`_clipped`, after
+   :func:`~rangekit.detect.condition.clip_mask`) are zeroed, so they stay out of the
+   correlation; the noise spectrum is estimated from the recording
+   (:func:`~rangekit.detect.matched.welch_spectra`, a low percentile over segments) and
    the matched filter is weighted by it (``weighting``; default ``"ml"``, the
-   maximum-likelihood ``S*(f) / N(f)``, chosen by measurement) and band-limited to the
-   probe's band (:func:`~rangekit.detect.condition.bandpass_taps`). Both are real and
-   even in frequency and folded into the filter's taps
-   (:meth:`MatchedFilter.prefiltered`): they move no arrival, and the first-path rule
-   compares peaks with the *weighted* filter's own response.
+   maximum-likelihood ``S*(f) / N(f)`` of Knapp & Carter 1976's family, chosen by
+   measurement) and band-limited to the probe's band
+   (:func:`~rangekit.detect.condition.bandpass_taps`): one zero-phase FIR applied to
+   ``x`` with its group delay removed (:func:`~rangekit.detect.condition.bandlimit`).
+   It is real and even in frequency, so it moves no arrival, and the first-path rule
+   compares peaks with the *weighted* self response.
 3. **Analytic matched filter** (:class:`rangekit.detect.matched.MatchedFilter`,
-   overlap-save): the envelope ``|c|`` of the correlation with the analytic template.
-4. **Arrivals**: local maxima of the envelope above ``k_rec = max(k_detect, sqrt(2 ln(n
-   / FALSE_ALARM)))`` times the noise's Rayleigh scale, taken strongest first; a peak
-   within ``min_separation_s`` of a stronger accepted one belongs to that arrival (its
-   reverberation or side lobes), and a peak that does not clear ``k_rec`` times the
-   *local* floor just before it (the reverberation or ringing of an earlier arrival) is
-   that arrival's tail, not a new arrival. With ``expected`` only the ``expected``
-   strongest arrivals are kept (tail peaks only when too few others exist, flagged
+   overlap-save, cached per probe and rate): the envelope ``|c|``.
+4. **Arrivals** (:func:`_select`): local maxima of the envelope above ``k_rec =
+   max(k_detect, sqrt(2 ln(n / FALSE_ALARM)))`` times the noise's Rayleigh scale,
+   strongest first; a peak within ``min_separation_s`` of a stronger accepted one
+   belongs to it; a peak that does not clear ``k_rec`` times the *local* floor before
+   its cluster, or lies under an earlier arrival's extrapolated tail, is that arrival's
+   reverberation, ringing or echo, not a new arrival. With ``expected`` exactly that
+   many are kept when that many are detectable (tail peaks only to fill, flagged
    ``reverb_limited``).
-5. **First path** (:func:`rangekit.detect.matched.first_path`): within ``lookback_s``
-   before each arrival's strongest peak, the earliest peak above ``max(k_noise * floor,
-   rel_threshold * strongest)`` that is not a side lobe of the strongest path.
+5. **First path** (:func:`rangekit.detect.matched.first_path`): within each arrival's
+   cluster (peaks chained back from the strongest with gaps of at most ``lookback_s``),
+   the earliest peak above ``max(k_noise * floor, rel_threshold * strongest)`` that is
+   not a side lobe of the strongest path nor of up to :data:`N_CLEAN_PATHS` stronger
+   later paths.
 6. **Sub-sample lag** by a Gaussian fit of the envelope (:func:`interp_peak`); 1-sigma
    ``sqrt(crb^2 + interp^2 + shape^2)``: the Cramér–Rao bound, the interpolation error of
    the weighted peak shape, and the shift an unmodelled component of the peak
    (unresolved multipath, transducer mismatch) can cause.
 7. **Flags** (:data:`rangekit.types.ARRIVAL_FLAGS`): ``clipped``, ``low_snr``,
-   ``ambiguous_first_path``, ``poor_match``, ``reverb_limited``, ``dc_or_lowband``.
+   ``ambiguous_first_path``, ``poor_match`` (sub-band coverage, :func:`_coverage`),
+   ``reverb_limited``, ``dc_or_lowband``.
 
 The onset of an arrival is the float sample index at which the probe's sample 0 arrived.
 
@@ -118,6 +123,11 @@ N_SUBBANDS = 8
 #: best sub-band's (per unit of expected share; -26 dB: the steep high-frequency roll-off of
 #: real loudspeakers over a wide band passes, see docs/theory/probes.md).
 SUBBAND_PRESENT = 0.05
+#: A sub-band is tested when the right template would put it this many noise deviations
+#: up ...
+SUBBAND_POWER = 4.0
+#: ... and present when it is this many up.
+SUBBAND_Z = 2.5
 #: ``poor_match``: the present sub-bands hold less than this share of the template's
 #: (weighted) energy (chosen by measurement, ``docs/theory/probes.md``).
 POOR_MATCH_COVERAGE = 0.5
@@ -228,6 +238,7 @@ def detect_template(
         mask = np.zeros(0, dtype=bool)
         wf = _unweighted(probe, fs, block, look)
         lowband = False
+        spectra = None
     else:
         mask = _clipped(x)
         if mask.any():
@@ -307,7 +318,7 @@ def detect_template(
             bits |= flag_bit("ambiguous_first_path")
         elif _near_miss(c, env, lo, [(j, lag - j), (js, a0 + pk.strongest_lag - js)], wf, thr):
             bits |= flag_bit("ambiguous_first_path")
-        if _coverage(xc, j, base, wf) < POOR_MATCH_COVERAGE:
+        if spectra is not None and _coverage(xc, j, base, wf, spectra) < POOR_MATCH_COVERAGE:
             bits |= flag_bit("poor_match")
         if tail or floor > REVERB_FACTOR * noise:
             bits |= flag_bit("reverb_limited")
@@ -539,37 +550,70 @@ def _subband_edges(band: tuple[float, float], fs: float) -> np.ndarray:
     return np.linspace(band[0], min(band[1], 0.5 * fs), N_SUBBANDS + 1)
 
 
-def _coverage(xc: np.ndarray, j: int, base: _Base, wf: _Filter) -> float:
+def _coverage(xc: np.ndarray, j: int, base: _Base, wf: _Filter, spectra) -> float:
     """Share of the template's energy whose sub-bands hold the arrival at onset ``j``.
 
     The correlation of the conditioned recording with the template at lag ``j`` is split
     into :data:`N_SUBBANDS` sub-bands of the probe's band (Parseval: ``r_b = sum over the
-    band's bins of 2 X S*``). For the probe that was played, every sub-band holds its
-    share of the arrival (``|r_b|`` proportional to the sub-band's expected share, up to
+    band's bins of X S*``, ``X`` the spectrum of the template-long segment at ``j``).
+    For the probe that was played every sub-band holds its share of the arrival (up to
     the transducers' ripple); a wrong template correlates with a recording only where
     the played signal shares its time-frequency path: in a part of the band (a beep's
     skirt, another sweep's overlap) or, for another chirp rate, a part at each lag.
-    Returns the expected share of the sub-bands whose ``|r_b| / share_b`` reaches
-    :data:`SUBBAND_PRESENT` of the largest. Noise fills every sub-band, so at low SNR
-    the coverage is high (a wrong template is then caught as ``low_snr``, not here).
+
+    Each sub-band's noise ``sd_b`` follows from the recording's noise PSD through the
+    conditioning FIR (``Var r_b = sum N |H|^2 |S|^2 fs n / 2``). A sub-band is *tested*
+    when the arrival, were it the template, would put it at least :data:`SUBBAND_POWER`
+    noise deviations up (its share of the full-band correlation); it is *present* when
+    ``|r_b|`` is :data:`SUBBAND_Z` deviations up and, per unit of share, at least
+    :data:`SUBBAND_PRESENT` of the best. Returns the tested share that is present (1 when
+    under a third of the share can be tested: too weak an arrival to judge, which
+    ``low_snr`` then reports).
     """
     h = base.template
     n = len(h)
     if j < 0 or j + n > len(xc):
         return 1.0
+    fs = 2.0 * base.band_fs
     X = np.fft.rfft(xc[j : j + n])
     S = _template_spectrum(base)
-    f = np.fft.rfftfreq(n, 1.0 / (2.0 * base.band_fs))
-    edges = _subband_edges(base.band, 2.0 * base.band_fs)
+    f = np.fft.rfftfreq(n, 1.0 / fs)
+    H = _taps_response(wf, n)
+    N = np.interp(f, spectra.f_hz, spectra.noise) * H**2
+    edges = _subband_edges(base.band, fs)
     cross = X * np.conj(S)
-    r = np.array([abs(cross[(f >= a) & (f < b)].sum()) for a, b in itertools.pairwise(edges)])
+    S2 = np.abs(S) ** 2
+    r, sd, e = [], [], []
+    for lo, hi in itertools.pairwise(edges):
+        k = (f >= lo) & (f < hi)
+        r.append(abs(cross[k].sum()))
+        sd.append(math.sqrt(max(float((N[k] * S2[k]).sum()) * fs * n / 2.0, 1e-300)))
+        e.append(float((S2[k] * H[k]).sum()))
+    r, sd, e = np.array(r), np.array(sd), np.array(e)
     sh = wf.shares
-    ok = sh >= 0.25 / N_SUBBANDS  # sub-bands the probe hardly fills are not tested
-    if not ok.any():
+    gain = abs(cross[(f >= edges[0]) & (f < edges[-1])].sum()) / max(float(e.sum()), 1e-300)
+    tested = (sh >= 0.25 / N_SUBBANDS) & (gain * e >= SUBBAND_POWER * sd)
+    if sh[tested].sum() < 1.0 / 3.0:
         return 1.0
-    a = np.where(ok, r / np.maximum(sh, 1e-300), 0.0)
-    present = a >= SUBBAND_PRESENT * float(a.max())
-    return float(sh[present & ok].sum() / sh[ok].sum())
+    a = np.where(tested, r / np.maximum(sh, 1e-300), 0.0)
+    present = tested & (r >= SUBBAND_Z * sd) & (a >= SUBBAND_PRESENT * float(a.max()))
+    return float(sh[present].sum() / sh[tested].sum())
+
+
+def _taps_response(wf: _Filter, n: int) -> np.ndarray:
+    """Real response of the conditioning FIR on ``rfftfreq(n)`` (1 without one)."""
+    if wf.taps is None:
+        return np.ones(n // 2 + 1)
+    hw = wf.reach
+    m = n
+    while m < len(wf.taps):
+        m *= 2
+    t = np.zeros(m)
+    t[: len(wf.taps)] = wf.taps
+    H = np.fft.rfft(np.roll(t, -hw)).real
+    if m != n:
+        H = np.interp(np.fft.rfftfreq(n), np.fft.rfftfreq(m), H)
+    return H
 
 
 def _template_spectrum(base: _Base) -> np.ndarray:

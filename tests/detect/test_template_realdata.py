@@ -59,15 +59,16 @@ def _recordings(rirs, probe, *, snr_db=30.0, lf=False, seed=5):
     return out
 
 
-def _errors(rirs, probe, **kw):
+def _errors(rirs, probe, *, check=True, **kw):
     fs = rirs[1]
     rows = []
     for x, truth in _recordings(rirs, probe, **kw):
         one = detect_template(x, fs=fs, probe=probe, expected=1)
-        every = detect_template(x, fs=fs, probe=probe)
         assert len(one) == 1
-        # Without --expected the reverberation is still one arrival, the same one.
-        assert len(every) == 1 and every.onset[0] == one.onset[0]
+        if check:
+            # Without --expected the reverberation is still one arrival, the same one.
+            every = detect_template(x, fs=fs, probe=probe)
+            assert len(every) == 1 and every.onset[0] == one.onset[0]
         rows.append((one.onset[0] - truth, one.sigma[0], one.flag_names(0)))
     return rows
 
