@@ -44,7 +44,7 @@ Examples
 from __future__ import annotations
 
 import math
-from collections.abc import Iterable, Iterator
+from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -63,6 +63,7 @@ __all__ = [
     "PathPeak",
     "Spectra",
     "coded_template",
+    "common_spectra",
     "crb_delay_s",
     "detect_matched",
     "first_path",
@@ -398,6 +399,36 @@ def welch_spectra(
     k = int(round(q / 100.0 * (len(P) - 1)))
     noise = np.partition(P, k, axis=0)[k] / -math.log(1.0 - q / 100.0)
     return Spectra(f, noise, mean, nperseg)
+
+
+def common_spectra(spectra: Sequence[Spectra]) -> Spectra:
+    """One noise spectrum for several recordings: the bin-wise maximum.
+
+    Weighting every device of an exchange by the same spectrum keeps the weighting's
+    share of the transducers' dispersion in the onsets the same for all of them, so it
+    cancels in two-way ranging (``docs/theory/probes.md``). The spectra must share
+    their grid (same rate and segment length).
+
+    Examples
+    --------
+    >>> rng = np.random.default_rng(1)
+    >>> a = welch_spectra(rng.standard_normal(20000), fs=1000.0, nperseg=128)
+    >>> b = welch_spectra(3 * rng.standard_normal(20000), fs=1000.0, nperseg=128)
+    >>> bool(np.all(common_spectra([a, b]).noise == np.maximum(a.noise, b.noise)))
+    True
+    """
+    spectra = list(spectra)
+    if not spectra:
+        raise InvalidParameterError("common_spectra needs at least one Spectra")
+    f = spectra[0].f_hz
+    for sp in spectra[1:]:
+        if len(sp.f_hz) != len(f) or not np.allclose(sp.f_hz, f):
+            raise InvalidParameterError(
+                "spectra must share their frequency grid (same rate and segment length)"
+            )
+    noise = np.max([sp.noise for sp in spectra], axis=0)
+    mean = np.max([sp.mean for sp in spectra], axis=0)
+    return Spectra(f, noise, mean, spectra[0].nperseg)
 
 
 def weighting_response(

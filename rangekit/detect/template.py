@@ -73,6 +73,7 @@ from rangekit.detect.matched import (
     NOISE_FLOOR_REL,
     WEIGHTINGS,
     MatchedFilter,
+    Spectra,
     first_path,
     interp_peak,
     noise_level,
@@ -101,6 +102,9 @@ FALSE_ALARM = 1e-3
 #: Default weighting of the matched filter (see ``docs/theory/probes.md`` for the
 #: measurements that chose it).
 DEFAULT_WEIGHTING = "ml"
+#: Default separation with ``expected``: at least the probe's duration, else this (s) or
+#: half of each emission's share of the recording, whichever is shorter.
+EXPECTED_SEP_S = 0.1
 #: Stronger later paths whose side lobes are removed before an earlier peak counts as
 #: the first path (:func:`rangekit.detect.matched.first_path`, ``n_paths``).
 N_CLEAN_PATHS = 3
@@ -160,6 +164,7 @@ def detect_template(
     rel_threshold: float = DEFAULT_REL_THRESHOLD,
     k_detect: float = DEFAULT_K_DETECT,
     weighting: str = DEFAULT_WEIGHTING,
+    spectra: Spectra | None = None,
     block: int = DEFAULT_BLOCK,
     what: str = "the recording",
 ) -> Arrivals:
@@ -180,7 +185,8 @@ def detect_template(
     min_separation_s : float, optional
         Shortest time between the starts of two emissions, s (e.g. a firing period);
         peaks closer to a stronger arrival belong to it. Default: the probe's duration
-        (plays do not overlap).
+        (plays do not overlap); with ``expected``, at least :data:`EXPECTED_SEP_S`
+        (0.1 s) unless half of each emission's share of the recording is shorter.
     lookback_s : float
         How far before an arrival's strongest peak its direct path may lie (default
         20 ms); capped at half of ``min_separation_s``.
@@ -190,6 +196,11 @@ def detect_template(
         Weighting of the matched filter by the recording's noise spectrum
         (:func:`rangekit.detect.matched.weighting_response`); ``"none"`` is the plain,
         unconditioned matched filter.
+    spectra : Spectra, optional
+        The noise spectrum to weight by (:func:`rangekit.detect.matched.welch_spectra`);
+        default: this recording's. Giving every device of an exchange the same one keeps
+        the weighting, and so the weighting's share of the transducers' dispersion in the
+        onsets, the same for all of them (see ``docs/theory/probes.md``, limits).
     block : int
         Overlap-save FFT size.
     what : str
@@ -226,7 +237,14 @@ def detect_template(
         raise InvalidParameterError(
             f"weighting={weighting!r} must be one of {', '.join(WEIGHTINGS)}"
         )
-    sep_s = probe.duration_s if min_separation_s is None else min_separation_s
+    if min_separation_s is not None:
+        sep_s = min_separation_s
+    elif expected is not None:
+        # N emissions in the recording: echoes and reverberation up to EXPECTED_SEP_S
+        # (at most half an emission's share of the recording) belong to their arrival.
+        sep_s = max(probe.duration_s, min(EXPECTED_SEP_S, len(x) / fs / (2 * expected)))
+    else:
+        sep_s = probe.duration_s
     sep = max(1, int(round(V.positive("min_separation_s", sep_s) * fs)))
     look = int(round(V.positive("lookback_s", lookback_s, allow_zero=True) * fs))
     look = min(look, sep // 2)
@@ -245,7 +263,10 @@ def detect_template(
             x = np.where(mask, 0.0, x)
         else:
             mask = np.zeros(0, dtype=bool)
-        spectra = welch_spectra(x, fs=fs, nperseg=base.nperseg)
+        if spectra is None:
+            spectra = welch_spectra(x, fs=fs, nperseg=base.nperseg)
+        elif not isinstance(spectra, Spectra) or spectra.f_hz[-1] != 0.5 * fs:
+            raise InvalidParameterError(f"spectra must be a Spectra of a recording at fs={fs:g} Hz")
         W = weighting_response(
             weighting, spectra, template_psd=base.template_psd, band_hz=base.band
         )

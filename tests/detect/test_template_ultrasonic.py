@@ -12,7 +12,8 @@ are unknown), so every onset carries the transducers' delay, the same for all
 emissions.
 
 Measured (seed 3, 6 emissions): with ``min_separation_s`` = 0.45 s (the firing period
-less the spread of the distances) exactly one arrival per emission, onsets 20.6-21.6
+less the spread of the distances) or ``expected=6`` (its default separation is then 0.1
+s) exactly one arrival per emission, onsets 20.6-21.6
 samples (Q 15) / 27.2-28.7 (Q 20) after the direct path's arrival; flagged
 ``poor_match`` (the bare tone does not look like what the ringing transducers deliver;
 not at Q 4). With only the default separation (the tone's 4 ms) 29 (Q 15) / 26 (Q 20)
@@ -73,7 +74,11 @@ def _log(q: float, seed: int = 3):
 def test_one_arrival_per_emission(q, lag_lo, lag_hi):
     x, truth, tone = _log(q)
     sep = 0.9 * PERIOD_S
-    for kw in ({"min_separation_s": sep}, {"min_separation_s": sep, "expected": N_EMIT}):
+    for kw in (
+        {"min_separation_s": sep},
+        {"expected": N_EMIT},
+        {"min_separation_s": sep, "expected": N_EMIT},
+    ):
         a = detect_template(x, fs=FS, probe=tone, **kw)
         assert len(a) == N_EMIT
         lag = a.onset - truth
