@@ -49,7 +49,6 @@ from rangekit.detect.refine import (
     EdgeFit,
     _window,
     edge_statistic,
-    first_peak,
     fit_edge,
     refine_onset,
 )
@@ -308,8 +307,11 @@ def _fit_beep(
     f_joint = 0.8 * f_min * min_bursts
     count = np.sum(np.asarray(widened) >= f_min, axis=0)
     joint = np.where(count >= min_bursts, joint, 0.0)
-    u = first_peak(joint, 0.1, f_joint)
-    if joint[u] < f_joint:
+    sep = max(2, int(round(beep.taper_s * fs)))
+    u = _first_edge(joint, 0.1, f_joint, sep=sep)
+    if joint[u] < f_joint or not sep <= u < width - sep:
+        # Nothing, or an edge cut by the search window (a change point raised by noise
+        # just before a beep): another change point's window holds the whole edge.
         return fits, clipped
 
     for k, ((seg, mask, raw, off, p), f) in enumerate(zip(segs, stats, strict=True)):
@@ -353,6 +355,21 @@ def _fit_beep(
         if fit is not None:
             fits[k] = replace(fit, onset=fit.onset + off)
     return fits, clipped
+
+
+def _first_edge(stat: np.ndarray, frac: float, floor: float, *, sep: int) -> int:
+    """Earliest local maximum of ``stat`` reaching ``max(frac * max, floor)`` that lies at
+    least ``sep`` samples (the taper) before the largest one; else the largest.
+
+    A strong edge's statistic has shoulders within a taper of its peak (the model's rise
+    half overlapping the true one); they are not an earlier path.
+    """
+    top = int(np.argmax(stat))
+    thr = max(frac * float(stat[top]), floor)
+    mid = stat[1:-1]
+    pk = np.flatnonzero((mid >= stat[:-2]) & (mid > stat[2:])) + 1
+    pk = pk[(stat[pk] >= thr) & (pk <= top - sep)]
+    return int(pk[0]) if len(pk) else top
 
 
 def _stat_on(
@@ -490,7 +507,8 @@ def _combine(
     further than their allowed scatter from it are rejected and the rest averaged with
     inverse-variance weights, the 1-sigma scaled up by their reduced chi-square.
 
-    Returns ``(onset, sigma, snr_db, confidence, burst_onsets, flags)``.
+    Returns ``(onset, sigma, snr_db, confidence, burst_onsets, flags, strength)``;
+    ``strength`` is the summed edge statistic of the kept bursts.
     """
     k_b = len(fits)
     ks = np.array([k for k, f in enumerate(fits) if f is not None])
@@ -531,7 +549,31 @@ def _combine(
         flags |= flag_bit("clipped")
     if snr < LOW_SNR_DB:
         flags |= flag_bit("low_snr")
-    return t0, s0, snr, ok.sum() / k_b, row, flags
+    strength = float(sum(fits[k].f_stat for k in ks[ok]))
+    return t0, s0, snr, ok.sum() / k_b, row, flags, strength
+
+
+def _resolve_aliases(rows: list[tuple], *, tol: float) -> list[tuple]:
+    """Keep one of two groups that share bursts: one beep indexed two ways.
+
+    A change point in noise one spacing before a beep makes a group whose bursts 1..3 are
+    the beep's bursts 0..2 and whose burst 0 is noise that happened to pass; it has as
+    many agreeing bursts as the real group and starts earlier, so the echo rule would
+    keep it. Groups sharing two or more burst onsets (within ``tol`` samples) are the same
+    beep: the one with the larger summed edge statistic stays.
+    """
+    keep = [True] * len(rows)
+    for i in range(len(rows)):
+        for j in range(i + 1, len(rows)):
+            if not (keep[i] and keep[j]):
+                continue
+            a, b = rows[i][4], rows[j][4]
+            a, b = a[np.isfinite(a)], b[np.isfinite(b)]
+            shared = int(np.sum(np.min(np.abs(a[:, None] - b[None, :]), axis=1) <= tol))
+            if shared >= 2 and abs(rows[i][0] - rows[j][0]) > tol:
+                weaker = i if rows[i][6] < rows[j][6] else j
+                keep[weaker] = False
+    return [r for r, k in zip(rows, keep, strict=True) if k]
 
 
 def drop_echoes(arr: Arrivals, *, duration: float) -> Arrivals:
@@ -562,11 +604,12 @@ def detect_changepoint(
     beep: Beep | None = None,
     win_s: float = WIN_S,
     hop_s: float = HOP_S,
-    threshold_db: float = 12.0,
+    threshold_db: float = 6.0,
     rise_db: float = 10.0,
     min_bursts: int | None = None,
     background: bool = True,
     condition: bool = True,
+    expected: int | None = None,
 ) -> Arrivals:
     """Detect beep arrivals by STFT change points refined by an edge fit.
 
@@ -594,6 +637,12 @@ def detect_changepoint(
         Condition the recording (default): band-limit the stretches the edge fits read to
         the beep's band (DC, hum, speech and music removed), leave clipped samples out.
         ``False`` fits the raw samples, as rangekit did before (for comparisons).
+    expected : int, optional
+        How many beeps were played (e.g. one per device of an exchange). When more are
+        found, doubtful ones (flagged ``inconsistent_bursts`` or ``low_snr``: spurious
+        groups in dense reverberation) are dropped, weakest first, while more than
+        ``expected`` remain; arrivals without those flags are never dropped, so a
+        recording holding more beeps than expected still shows them all.
 
     Returns
     -------
@@ -640,7 +689,7 @@ def detect_changepoint(
     anchors: list[int] = []
     for m in frames.tolist():
         a = _anchor(m * hop, e, hop=hop, n_win=n_win, spacing=spacing, beep=beep, fs=fs)
-        if all(abs(a - b) > n_win for b in anchors):
+        if all(abs(a - b) > hop for b in anchors):
             anchors.append(a)
     cond = _conditioner(x, fs=fs, beep=beep, condition=condition)
     live = floor[floor > 1e-12 * float(floor.max())] if len(floor) and floor.max() > 0 else floor
@@ -661,11 +710,12 @@ def detect_changepoint(
         res = _combine(fits, clipped, spacing=spacing, scale=fs / 44100.0, min_bursts=min_bursts)
         if res is None:
             continue
-        t0, s0, snr, conf, row, flags = res
+        t0, s0, snr, conf, row, flags, strength = res
         flags |= _before_onset_flags(e, t0, hop=hop, n_win=n_win, fs=fs, quiet=quiet)
         if oob:
             flags |= flag_bit("dc_or_lowband")
-        rows.append((t0, s0, snr, conf, row, flags))
+        rows.append((t0, s0, snr, conf, row, flags, strength))
+    rows = _resolve_aliases(rows, tol=2.0 * fs / 44100.0 + 2.0)
     if not rows:
         return Arrivals.empty(fs=fs, n_bursts=k_b, detector="changepoint")
     arr = Arrivals(
@@ -678,7 +728,15 @@ def detect_changepoint(
         "changepoint",
         flags=np.array([r[5] for r in rows], dtype=np.int64),
     )
-    return drop_echoes(arr, duration=beep.duration_s * fs)
+    arr = drop_echoes(arr, duration=beep.duration_s * fs)
+    if expected is not None and len(arr) > V.positive_int("expected", expected):
+        weak = flag_bit("inconsistent_bursts") | flag_bit("low_snr")
+        doubtful = np.flatnonzero(arr.flags & weak)
+        # weakest first: fewest agreeing bursts, then lowest SNR
+        order = doubtful[np.lexsort((arr.snr_db[doubtful], arr.confidence[doubtful]))]
+        drop = order[: len(arr) - expected]
+        arr = arr.take(np.setdiff1d(np.arange(len(arr)), drop))
+    return arr
 
 
 def _before_onset_flags(

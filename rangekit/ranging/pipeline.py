@@ -62,7 +62,7 @@ def detect_channel(
     if probe is not None:
         return _detect_probe(ch, probe=probe, expected=expected)
     check_beep_fits(beep, fs=ch.fs, what=f"'{ch.source}'")
-    kw = {"max_beeps": expected} if detector == "xcorr" else {}
+    kw = {"max_beeps": expected} if detector == "xcorr" else {"expected": expected}
     arr = detect(ch.x, fs=ch.fs, beep=beep, detector=detector, **kw)
     if expected is not None and len(arr) < expected:
         # Only on failure: the individual bursts tell whether their spacing is the problem.
