@@ -14,7 +14,9 @@ time is the template's start, i.e. the onset of the first burst, with no offset 
 
 This is the baseline the change-point detector is compared against (``docs/accuracy.md``):
 reflections that arrive during a burst move the correlation peak, where the change-point
-detector's edge fit sees only the leading edge.
+detector's edge fit sees only the leading edge. Its arrivals carry the
+``ambiguous_first_path`` flag when sound of the beep's band arrived before the chosen
+peak (the strongest peak in a room is often a reflection).
 """
 
 from __future__ import annotations
@@ -135,6 +137,22 @@ def detect_xcorr(
         conf[keep],
         bursts.reshape(len(onset), k_b)[keep],
         "xcorr",
+        flags=_flags(x, onset[keep], fs=fs, beep=beep),
+    )
+
+
+def _flags(x: np.ndarray, onsets: np.ndarray, *, fs: float, beep: Beep) -> np.ndarray:
+    """``ambiguous_first_path`` / ``reverb_limited`` from the band energy before each
+    onset (as for the change-point detector): the strongest correlation peak in a room is
+    often a reflection, and the direct sound then shows before it."""
+    from rangekit.detect._kernels import band_energy
+    from rangekit.detect.changepoint import HOP_S, WIN_S, _before_onset_flags, _stft_params
+
+    n_win, hop = _stft_params(fs, WIN_S, HOP_S)
+    e = band_energy(x, fs=fs, f_hz=np.array([beep.f_hz]), n_win=n_win, hop=hop)
+    return np.array(
+        [_before_onset_flags(e, t, hop=hop, n_win=n_win, fs=fs, quiet=0.0) for t in onsets],
+        dtype=np.int64,
     )
 
 

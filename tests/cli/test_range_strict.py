@@ -3,13 +3,16 @@
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 from clihelp import assert_error, ok, run
 
 
 def _synth(tmp_path, name, *extra):
     out = tmp_path / f"{name}.wav"
-    ok(run(["synth", "beepbeep", "--distance", 2, "--seed", 3, *extra, "-o", out]))
+    if "--distance" not in extra:
+        extra = ("--distance", 2, *extra)
+    ok(run(["synth", "beepbeep", "--seed", 3, *extra, "-o", out]))
     return out
 
 
@@ -37,3 +40,34 @@ def test_strict_is_beepbeep_only(tmp_path):
     wav = _synth(tmp_path, "x")
     assert_error(run(["range", wav, "--strict", "--series"]), 2, "--strict")
     assert_error(run(["range", wav, "--strict", "--scheme", "echo"]), 2, "--strict")
+
+
+ROOM = Path(__file__).resolve().parents[2] / "fixtures_audio" / "beepbeep_room_4p2m.wav"
+
+
+def test_xcorr_on_a_reflection_is_flagged_not_confident(tmp_path):
+    """The cross-correlation baseline takes a reflection 257 samples late in the room
+    fixture (6.09 m for 4.08 m): it must carry a flag, and --strict refuses it."""
+    res = ok(run(["range", ROOM, "--detector", "xcorr", "--format", "json"]))
+    r = json.loads(res.output)["ranges"][0]
+    assert abs(r["distance_m"] - 4.08) > 1.0  # still the baseline's wrong answer ...
+    assert "ambiguous_first_path" in r["flags"]  # ... but no longer a confident one
+    assert_error(run(["range", ROOM, "--detector", "xcorr", "--strict"]), 10, "pair 0-1")
+    res = ok(run(["range", ROOM, "--strict", "--format", "json"]))  # changepoint: fine
+    assert abs(json.loads(res.output)["ranges"][0]["distance_m"] - 4.08) < 0.01
+
+
+def test_wrong_template_is_flagged_or_refused(tmp_path):
+    """A beep recording ranged with a 17-20 kHz sweep as template (the issue's example of
+    a confident wrong answer: 19.58 m, sigma 8.7 mm, exit 0)."""
+    wav = _synth(tmp_path, "beep3m", "--distance", 3)
+    sweep = tmp_path / "sweep.wav"
+    ok(run(["design", "sweep", "--f0", 17000, "--f1", 20000, "--duration", 0.1, "-o", sweep]))
+    res = run(["range", wav, "--template", sweep, "--self-distance", 0.1, "--format", "json"])
+    if res.exit_code == 0:
+        r = json.loads(res.output)["ranges"][0]
+        assert abs(r["distance_m"] - 3.0) < 0.1 or r["flags"], r
+        res = run(["range", wav, "--template", sweep, "--self-distance", 0.1, "--strict"])
+        assert res.exit_code in (6, 10)
+    else:
+        assert res.exit_code == 6
