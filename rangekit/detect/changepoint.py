@@ -70,6 +70,9 @@ LOOKBACK_S = 0.004
 #: the pyroomacoustics corpus (``rangekit.experiments.realistic``) so that 2-sigma covers
 #: 90-97 % of the two-way errors (docs/accuracy.md).
 MODEL_SIGMA = 1.0
+#: Rise of the band energy at a burst place that counts as a burst there, dB (a beep's
+#: start needs ``min_bursts`` such places; a change point in noise has one).
+MIN_RISE_DB = 3.0
 #: Median burst SNR below which an arrival is flagged ``low_snr``, dB.
 LOW_SNR_DB = 10.0
 #: Length of the stretches with their own noise floor, s (automatic-gain steps, noise
@@ -454,8 +457,16 @@ def _conditioner(x: np.ndarray, *, fs: float, beep: Beep, condition: bool) -> _C
 
 
 def _anchor(
-    c: int, e: np.ndarray, *, hop: int, n_win: int, spacing: float, beep: Beep, fs: float
-) -> int:
+    c: int,
+    e: np.ndarray,
+    *,
+    hop: int,
+    n_win: int,
+    spacing: float,
+    beep: Beep,
+    fs: float,
+    cs: np.ndarray | None = None,
+) -> tuple[int, int]:
     """Start of the beep that a burst onset near sample ``c`` belongs to.
 
     A change point may be any burst of a beep (the first can be masked by noise or by the
@@ -465,15 +476,19 @@ def _anchor(
     in dB, clipped to [0, 30]. The best total (the earliest hypothesis on a tie) gives the
     beep start ``c - j spacing``. A rise, not a level: a loud beep's reverberation has
     energy at the burst places of a faint beep that follows, but it does not rise there.
+    Returns the beep start and how many of its burst places rise ``MIN_RISE_DB`` or more
+    (a change point in noise has one such place at most).
     """
     k_b = beep.n_bursts
     if k_b == 1:
-        return c
-    cs = np.concatenate(([0.0], np.cumsum(e)))
+        return c, 1
+    if cs is None:  # cumulative sum of e with a leading 0 (pass it when calling often)
+        cs = np.concatenate(([0.0], np.cumsum(e)))
     n_e = len(e)
     w = max(1, n_win // hop)
     n_plat = max(1, int((beep.burst_s * fs - 2 * n_win) / hop))
     scores = np.zeros(k_b)
+    rising = np.zeros(k_b, dtype=np.int64)
     for j in range(k_b):
         tot = 0.0
         for k in range(k_b):
@@ -485,10 +500,12 @@ def _anchor(
             plat = (cs[p1] - cs[p0]) / (p1 - p0)
             pre = (cs[q1] - cs[q0]) / (q1 - q0)
             if plat > 0:
-                tot += min(30.0, max(0.0, 10.0 * math.log10(plat / max(pre, 1e-300))))
+                rise = min(30.0, max(0.0, 10.0 * math.log10(plat / max(pre, 1e-300))))
+                tot += rise
+                rising[j] += rise >= MIN_RISE_DB
         scores[j] = tot
     best_j = int(np.flatnonzero(scores >= scores.max() - 1e-9)[0])
-    return int(round(c - best_j * spacing))
+    return int(round(c - best_j * spacing)), int(rising[best_j])
 
 
 def _combine(
@@ -687,16 +704,27 @@ def detect_changepoint(
     )
     spacing = beep.spacing_s * fs
     anchors: list[int] = []
+    cs = np.concatenate(([0.0], np.cumsum(e)))
     for m in frames.tolist():
-        a = _anchor(m * hop, e, hop=hop, n_win=n_win, spacing=spacing, beep=beep, fs=fs)
-        if all(abs(a - b) > hop for b in anchors):
+        a, n_rise = _anchor(
+            m * hop, e, hop=hop, n_win=n_win, spacing=spacing, beep=beep, fs=fs, cs=cs
+        )
+        if n_rise >= min_bursts and all(abs(a - b) > hop for b in anchors[-8:]):
             anchors.append(a)
     cond = _conditioner(x, fs=fs, beep=beep, condition=condition)
     live = floor[floor > 1e-12 * float(floor.max())] if len(floor) and floor.max() > 0 else floor
     quiet = float(np.percentile(live, 10.0)) if len(live) else 0.0
     oob = _out_of_band(x, cond) if condition else False
     rows = []
+    look = int(round(LOOKBACK_S * fs))
+    sep = max(2, int(round(beep.taper_s * fs)))
+    found: list[float] = []
     for a in anchors:
+        # An anchor whose search window holds a beep onset already found (away from the
+        # window's ends) would find that beep again: the beep's other change points.
+        lo_a, hi_a = a - n_win // 2 - look + sep, a + n_win + hop - sep
+        if any(lo_a <= t <= hi_a for t in found):
+            continue
         fits, clipped = _fit_beep(
             cond,
             a,
@@ -711,6 +739,7 @@ def detect_changepoint(
         if res is None:
             continue
         t0, s0, snr, conf, row, flags, strength = res
+        found.append(t0)
         flags |= _before_onset_flags(e, t0, hop=hop, n_win=n_win, fs=fs, quiet=quiet)
         if oob:
             flags |= flag_bit("dc_or_lowband")

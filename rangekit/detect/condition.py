@@ -151,7 +151,9 @@ def bandlimit(x: np.ndarray, taps: np.ndarray) -> np.ndarray:
     if len(h) == 1:
         return h[0] * x
     half = (len(h) - 1) // 2
-    y = oaconvolve(x, h, mode="full") if len(x) > 4 * len(h) else np.convolve(x, h)
+    # Direct convolution for short stretches (the edge fits' few hundred samples): the
+    # FFT's set-up costs more than the products there.
+    y = oaconvolve(x, h, mode="full") if len(x) * len(h) > 1 << 20 else np.convolve(x, h)
     return np.ascontiguousarray(y[half : half + len(x)])
 
 
@@ -182,11 +184,13 @@ def clip_mask(x: np.ndarray, *, rel_tol: float = 1e-4, min_run: int = 2) -> np.n
     if span <= 0.0:
         return mask
     tol = rel_tol * span
-    for at_rail, rail in ((x >= hi - tol, hi), (x <= lo + tol, lo)):
-        if rail == 0.0:
+    for idx, rail in ((np.flatnonzero(x >= hi - tol), hi), (np.flatnonzero(x <= lo + tol), lo)):
+        if rail == 0.0 or len(idx) < min_run:
             continue  # digital silence at a rail is not clipping
-        if _runs_at_least(at_rail, min_run).any():
-            mask |= at_rail
+        # a run of min_run consecutive indices among the (few) samples at the rail
+        step = np.diff(idx) == 1
+        if min_run <= 1 or _runs_at_least(step, min_run - 1).any():
+            mask[idx] = True
     return mask
 
 

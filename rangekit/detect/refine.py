@@ -42,6 +42,12 @@ from rangekit.signals.beep import Beep, burst_envelope
 
 __all__ = ["EdgeFit", "edge_statistic", "first_peak", "fit_edge", "refine_onset"]
 
+#: Onsets of the coarse grid (over +-(3 fs/44.1 kHz + 1) samples) and of the fine grid
+#: (between the coarse minimum's neighbours) of stage 2. The residual is smooth at these
+#: scales: 13 + 13 points give the onsets of 25 + 33 to within 0.002 samples (tests).
+N_COARSE = 13
+N_FINE = 13
+
 
 @dataclass(frozen=True)
 class EdgeFit:
@@ -312,9 +318,9 @@ def refine_onset(
     kw2 = {**kw, "background": background}
     # Coarse grid, then a fine grid between the coarse minimum's neighbours, then a
     # parabola through the three lowest fine points; each grid is one batched solve.
-    grid = np.linspace(a - h, a + h, 25)
+    grid = np.linspace(a - h, a + h, N_COARSE)
     j = int(np.argmin(_fits(seg2, n, grid, **kw2)[0]))
-    fine = np.linspace(grid[max(j - 1, 0)], grid[min(j + 1, len(grid) - 1)], 33)
+    fine = np.linspace(grid[max(j - 1, 0)], grid[min(j + 1, len(grid) - 1)], N_FINE)
     rf = _fits(seg2, n, fine, **kw2)[0]
     m = int(np.clip(np.argmin(rf), 1, len(fine) - 2))
     y0, y1, y2 = rf[m - 1], rf[m], rf[m + 1]
