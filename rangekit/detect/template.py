@@ -91,6 +91,7 @@ __all__ = [
     "FALSE_ALARM",
     "POOR_MATCH_COVERAGE",
     "detect_template",
+    "noise_spectra",
 ]
 
 #: Default time before an arrival's strongest peak searched for an earlier direct path, s
@@ -150,6 +151,18 @@ ANALYTIC_TAIL = 1e-7
 #: noise weighting handles their low band; a high-pass edge there would need thousands
 #: of taps.
 _MIN_HIGHPASS_HZ = 500.0
+
+
+def noise_spectra(x: np.ndarray, *, fs: float, probe: Probe) -> Spectra:
+    """The noise spectrum :func:`detect_template` weights ``probe``'s filter by, for ``x``.
+
+    Give :func:`rangekit.detect.matched.common_spectra` of every device's spectrum to
+    each device's :func:`detect_template` (``spectra=``) so that all of an exchange's
+    recordings are weighted alike.
+    """
+    fs = V.sample_rate(fs)
+    x = V.signal_1d("x", x)
+    return welch_spectra(x, fs=fs, nperseg=_base(probe, fs, DEFAULT_BLOCK).nperseg)
 
 
 def detect_template(

@@ -52,15 +52,16 @@ def detect_channel(
     detector: str = "changepoint",
     expected: int | None = None,
     probe: Probe | None = None,
+    spectra=None,
 ) -> Arrivals:
     """Detect the beeps in one device's recording; explain in the error when too few are found.
 
     With ``probe`` the arrivals are those of that signal
-    (:func:`rangekit.detect.template.detect_template`; ``beep`` and ``detector`` are
-    unused).
+    (:func:`rangekit.detect.template.detect_template`, weighted by ``spectra`` when given;
+    ``beep`` and ``detector`` are unused).
     """
     if probe is not None:
-        return _detect_probe(ch, probe=probe, expected=expected)
+        return _detect_probe(ch, probe=probe, expected=expected, spectra=spectra)
     check_beep_fits(beep, fs=ch.fs, what=f"'{ch.source}'")
     kw = {"max_beeps": expected} if detector == "xcorr" else {"expected": expected}
     arr = detect(ch.x, fs=ch.fs, beep=beep, detector=detector, **kw)
@@ -80,10 +81,12 @@ def detect_channel(
     return arr
 
 
-def _detect_probe(ch: Channel, *, probe: Probe, expected: int | None) -> Arrivals:
+def _detect_probe(ch: Channel, *, probe: Probe, expected: int | None, spectra=None) -> Arrivals:
     from rangekit.detect.template import detect_template
 
-    arr = detect_template(ch.x, fs=ch.fs, probe=probe, expected=expected, what=f"'{ch.source}'")
+    arr = detect_template(
+        ch.x, fs=ch.fs, probe=probe, expected=expected, spectra=spectra, what=f"'{ch.source}'"
+    )
     if expected is not None and len(arr) < expected:
         found = "no arrival" if len(arr) == 0 else f"{len(arr)} arrival(s)"
         raise DetectionError(
@@ -148,10 +151,13 @@ def range_channels(
                 "give self_distance_m or a calibration, not both: the calibration's offset "
                 "already holds the speaker-to-microphone distances"
             )
+    spectra = _common_spectra(channels, probe) if probe is not None else None
     for ch in channels:
         try:
             arrivals.append(
-                detect_channel(ch, beep=beep, detector=detector, expected=n, probe=probe)
+                detect_channel(
+                    ch, beep=beep, detector=detector, expected=n, probe=probe, spectra=spectra
+                )
             )
         except DetectionError as e:
             errors.append(str(e))
@@ -161,6 +167,22 @@ def range_channels(
         arrivals, speed_m_s=c, self_distance_m=self_distance_m, clock_ppm=clock_ppm
     )
     return result if calibration is None else calibration.apply(result)
+
+
+def _common_spectra(channels: Sequence[Channel], probe: Probe):
+    """One noise spectrum for every device's probe filter (the bin-wise maximum), so the
+    weighting's share of the transducers' dispersion is the same in every onset and
+    cancels in two-way ranging (``docs/theory/probes.md``); None when the rates (or the
+    spectra's grids) differ: each recording is then weighted by its own."""
+    from rangekit.detect.matched import common_spectra
+    from rangekit.detect.template import noise_spectra
+
+    if len({ch.fs for ch in channels}) != 1:
+        return None
+    spectra = [noise_spectra(ch.x, fs=ch.fs, probe=probe) for ch in channels]
+    if len({len(sp.f_hz) for sp in spectra}) != 1:
+        return None  # a recording too short for the full segment length
+    return common_spectra(spectra)
 
 
 def range_files(
