@@ -10,16 +10,22 @@ level of the rendered noise: 200 exchanges, 400 beeps at known onsets.  ``--quic
 Rows, each the best of ``--repeats`` calls (default 3) after a warm-up (numba compile or
 cache load, FFT planning):
 
-* ``detect_changepoint`` float64: one call on the whole array.
+* ``detect_changepoint`` float64: one call on the whole array (numba path: the signal is
+  longer than ``NUMBA_MIN_SAMPLES``).
+* ``detect_changepoint`` numpy path: the same call with the edge fit's numba kernels off
+  (``rangekit.detect._edge_kernels.NUMBA_MIN_SAMPLES`` raised), the reference the kernels
+  are tested against; the script checks that both give the same onsets (1e-6 samples).
 * ``detect_changepoint`` float32: the same array as float32 (accepted; the detector
   converts it to a float64 copy on entry, ``rangekit._validate.signal_1d``).
 * ``detect_xcorr``: the FFT matched-filter baseline on the whole array (~2.2-2.4 GB peak
   memory for 10 min).  If a 60 s trial projects to more than 60 s or more than half of
   the available memory, it is run on 60 s and scaled, and the row says so.
-* stages of ``detect_changepoint`` (float64): band energy, change points, one
-  ``fit_edge`` per candidate burst, grouping, and the rest, timed inside one real call by
-  wrapping those functions in ``rangekit.detect.changepoint``'s namespace (fastest of
-  ``--repeats`` instrumented calls).
+* stages of ``detect_changepoint`` (float64): band energy, noise floor, change points,
+  anchors (``_anchor``, or ``_anchors_compiled`` on the numba path), the per-beep edge
+  fits (``_fit_beep``; of which ``edge_statistic`` and ``refine_onset``), ``_combine``, and
+  the rest, timed inside one real call by wrapping those functions in
+  ``rangekit.detect.changepoint``'s namespace (fastest of ``--repeats`` instrumented
+  calls).
 * peer: ``scipy.signal.ShortTimeFFT(hann(128, sym=False), hop=32, mfft=128,
   scale_to=None)`` + ``|X|**2`` of the bin nearest 16 kHz (bin 46, 15848 Hz), in chunks
   of 60 s of whole frames (a 10-min STFT with 65 bins would be ~0.9 GB of complex128);
@@ -31,7 +37,7 @@ The detections are checked (count and timing against the known onsets) and print
 script exits with status 1 if ``detect_changepoint`` missed or invented beeps, so it
 cannot silently time a broken detector.  When the whole detection is below half of the
 design target (2000x realtime on one core) the script profiles it (cProfile of one call
-plus per-call timings of the edge fit) and prints where the time goes; ``--profile``
+plus per-call timings of the two edge-fit stages) and prints where the time goes; ``--profile``
 forces that.
 
 BLAS/OpenMP pools are limited to one thread before numpy is imported (one core, like the
@@ -56,6 +62,7 @@ import numpy as np
 from _report import row
 from _stft_peer import stft_band_energy
 
+import rangekit.detect._edge_kernels as edge_kernels
 import rangekit.detect.changepoint as cp
 import rangekit.detect.refine as refine
 from rangekit.detect import detect_changepoint, detect_xcorr
@@ -131,18 +138,25 @@ def stages(x: np.ndarray, beep: Beep) -> tuple[dict[str, float], int, float, obj
     """Time the steps of one real ``detect_changepoint`` call.
 
     The step functions are looked up by ``changepoint`` at call time, so wrapping them in
-    that module's namespace times the real pipeline (wrapper cost ~1 us per call).
-    Returns (seconds per step, number of ``fit_edge`` calls, whole call, arrivals).
+    that module's namespace times the real pipeline (wrapper cost ~1 us per call). The
+    edge statistic and the onset refinement run inside the per-beep fits; their rows are
+    parts of that row ("of which"), the others add up to the whole call.
+    Returns (seconds per step, number of ``refine_onset`` calls, whole call, arrivals).
     """
     steps = {
         "band_energy": "band_energy (numba)",
+        "_floor": "local noise floor",
         "_change_points": "change points",
-        "fit_edge": "edge fits (fit_edge)",
-        "group_bursts": "grouping + echo removal",
+        "_anchor": "anchors (beep starts)",
+        "_anchors_compiled": "anchors (beep starts)",
+        "_fit_beep": "per-beep edge fits (_fit_beep)",
+        "edge_statistic": "  of which stage 1 (edge_statistic)",
+        "refine_onset": "  of which stage 2 (refine_onset)",
+        "_combine": "bursts -> beep (_combine)",
     }
     acc = dict.fromkeys(steps.values(), 0.0)
     calls = dict.fromkeys(steps.values(), 0)
-    originals = {name: getattr(cp, name) for name in steps if hasattr(cp, name)}
+    originals = {name: getattr(cp, name) for name in steps}
 
     def timed(name, fn):
         def wrapper(*a, **k):
@@ -164,8 +178,10 @@ def stages(x: np.ndarray, beep: Beep) -> tuple[dict[str, float], int, float, obj
     finally:
         for name, fn in originals.items():
             setattr(cp, name, fn)
-    acc["rest (input check, glue)"] = whole - sum(acc.values())
-    return acc, calls["edge fits (fit_edge)"], whole, arr
+    acc["rest (input check, conditioning, glue)"] = whole - sum(
+        v for k, v in acc.items() if not k.startswith(" ")
+    )
+    return acc, calls["  of which stage 2 (refine_onset)"], whole, arr
 
 
 def profile(x: np.ndarray, beep: Beep, t_whole: float, duration_s: float, n_fits: int) -> None:
@@ -197,45 +213,27 @@ def profile(x: np.ndarray, beep: Beep, t_whole: float, duration_s: float, n_fits
 
 
 def _per_call_costs(x: np.ndarray, beep: Beep, t_whole: float, n_fits: int) -> None:
-    """Per-call cost of ``fit_edge`` and its inner steps, without profiler overhead."""
-    # The arguments of a real fit_edge call (the 2nd candidate of the first 10 s).
-    seen: list[dict] = []
-    orig_fit = cp.fit_edge
+    """Per-call cost of the two edge-fit stages, without profiler overhead."""
+    # The arguments of real calls (the 2nd of the first 10 s; numpy path there if short).
+    seen: dict[str, list] = {"edge_statistic": [], "refine_onset": []}
+    orig = {name: getattr(cp, name) for name in seen}
 
-    def record(*a, **k):
-        seen.append(k)
-        return orig_fit(*a, **k)
+    def recorder(name):
+        def record(*a, **k):
+            seen[name].append((a, k))
+            return orig[name](*a, **k)
 
-    cp.fit_edge = record
+        return record
+
+    for name in seen:
+        setattr(cp, name, recorder(name))
     try:
-        detect_changepoint(x[: int(10 * FS)], fs=FS, beep=beep)
+        detect_changepoint(x, fs=FS, beep=beep)
     finally:
-        cp.fit_edge = orig_fit
-    kw_fit = {k: v for k, v in seen[1].items() if k not in ("fs", "beep")}
+        for name, fn in orig.items():
+            setattr(cp, name, fn)
 
-    n_res = [0]
-    orig_res = refine._fits
-
-    def counting(*a, **k):
-        n_res[0] += 1
-        return orig_res(*a, **k)
-
-    refine._fits = counting
-    try:
-        fit = refine.fit_edge(x, fs=FS, beep=beep, **kw_fit)
-    finally:
-        refine._fits = orig_res
-
-    # The stage-2 window of fit_edge (24 samples before, taper + 8 after, +-4 around).
-    a = fit.onset
-    i0 = int(math.floor(a - 4.0)) - 24
-    i1 = int(math.ceil(a + 4.0)) + int(math.ceil(beep.taper_s * FS + 8))
-    n = np.arange(i0, i1, dtype=np.float64)
-    seg = x[i0:i1]
-    kw = {"w": 2.0 * math.pi * beep.f_hz / FS, "fs": FS, "beep": beep, "background": False}
-    grid = np.linspace(a - 4.0, a + 4.0, 25)
-
-    def per_call(fn, count: int = 2000) -> float:
+    def per_call(fn, count: int) -> float:
         """Best of 5 batches of ``count`` calls, per call."""
         best = math.inf
         for _ in range(5):
@@ -245,21 +243,20 @@ def _per_call_costs(x: np.ndarray, beep: Beep, t_whole: float, n_fits: int) -> N
             best = min(best, (time.perf_counter() - t0) / count)
         return best
 
-    t_fit = per_call(lambda: refine.fit_edge(x, fs=FS, beep=beep, **kw_fit), 100)
-    t_res = per_call(lambda: refine._fits(seg, n, grid, **kw), 500)
-    t_basis = per_call(lambda: refine._basis_many(n, grid, **kw), 500)
-    t_env = per_call(
-        lambda: refine.burst_envelope((n[None, :] - grid[:, None]) / FS, beep=beep), 500
-    )
-    print(
-        f"  per call (no profiler; one real candidate, {len(seg)}-sample stage-2 window):\n"
-        f"    fit_edge          {t_fit * 1e6:8.0f} us  x {n_fits} candidate bursts "
-        f"= {t_fit * n_fits:.2f} s of the {t_whole:.2f} s whole detection\n"
-        f"    _fits (25 onsets) {t_res * 1e6:8.1f} us  x {n_res[0]} batched calls per fit_edge "
-        f"(~{t_res * n_res[0] / t_fit:.0%} of fit_edge)\n"
-        f"      _basis_many     {t_basis * 1e6:8.1f} us  (of which burst_envelope "
-        f"{t_env * 1e6:.1f} us)"
-    )
+    print("  per call (no profiler; one real call of each, compiled and numpy path):")
+    for name, fn in (
+        ("edge_statistic", refine.edge_statistic),
+        ("refine_onset", refine.refine_onset),
+    ):
+        a, k = seen[name][1]
+        k_np = {**k, "compiled": False}
+        k_nb = {**k, "compiled": True}
+        t_np = per_call(lambda f=fn, a=a, k=k_np: f(*a, **k), 200)
+        t_nb = per_call(lambda f=fn, a=a, k=k_nb: f(*a, **k), 200)
+        print(
+            f"    {name:<15} numpy {t_np * 1e6:7.1f} us, compiled {t_nb * 1e6:7.1f} us "
+            f"({t_np / t_nb:.1f}x) x {len(seen[name])} calls"
+        )
 
 
 def main() -> int:
@@ -295,6 +292,13 @@ def main() -> int:
     rows.append(("detect_changepoint float64 (whole)", t_cp, ""))
     t_cp32, arr32 = best_time(lambda: detect_changepoint(x32, fs=FS, beep=beep), repeats)
     rows.append(("detect_changepoint float32 (whole)", t_cp32, "converted to float64 inside"))
+    min_samples = edge_kernels.NUMBA_MIN_SAMPLES
+    edge_kernels.NUMBA_MIN_SAMPLES = 1 << 62  # the edge fit's numpy path (the reference)
+    try:
+        t_np, arr_np = best_time(lambda: detect_changepoint(x, fs=FS, beep=beep), repeats)
+    finally:
+        edge_kernels.NUMBA_MIN_SAMPLES = min_samples
+    rows.append(("detect_changepoint, numpy edge fit", t_np, "the kernels' reference path"))
 
     # xcorr: full array unless a 60 s trial says it would be too slow or too big.
     n60 = int(60.0 * FS)
@@ -322,7 +326,7 @@ def main() -> int:
         if whole < t_st:
             t_st, st_times, n_cand, st_arr = whole, t, n_c, arr_s
     for k, v in st_times.items():
-        note = f"{n_cand} candidate bursts" if k.startswith("edge") else ""
+        note = f"{n_cand} bursts refined" if "refine_onset" in k else ""
         rows.append((f"  stage: {k}", v, note))
 
     t_peer, e_peer = best_time(lambda: stft_peer(x), repeats)
@@ -351,7 +355,15 @@ def main() -> int:
         f"uninstrumented best {t_cp:.3f} s)\n"
     )
 
-    ok = check("detect_changepoint float64", arr.onset, truth)
+    same = len(arr_np) == len(arr) and bool(np.all(np.abs(arr_np.onset - arr.onset) <= 1e-6))
+    same = same and np.array_equal(arr_np.flags, arr.flags)
+    print(
+        f"  check numba vs numpy edge fit     : {len(arr)} / {len(arr_np)} arrivals, max |onset "
+        f"diff| = {np.max(np.abs(arr_np.onset - arr.onset)) if same else math.nan:.1e} "
+        f"samples, flags equal -> {'OK' if same else 'FAIL'}"
+    )
+    ok = same
+    ok &= check("detect_changepoint float64", arr.onset, truth)
     ok &= check("detect_changepoint float32", arr32.onset, truth)
     ok &= check("instrumented call", st_arr.onset, truth)
     check("detect_xcorr (baseline)", arr_xc.onset, xc_truth)

@@ -36,6 +36,7 @@ import numpy as np
 from scipy.ndimage import maximum_filter1d
 
 from rangekit import _validate as V
+from rangekit.detect import _edge_kernels
 from rangekit.detect._kernels import band_energy
 from rangekit.detect.condition import (
     active_floor,
@@ -207,6 +208,7 @@ def _fit_at(
     n_win: int,
     hop: int,
     background: bool,
+    compiled: bool = False,
 ) -> tuple[EdgeFit | None, bool]:
     """Edge fit of a burst whose change point is at sample ``c``.
 
@@ -227,6 +229,7 @@ def _fit_at(
         background=background,
         mask=mask,
         dc=raw,
+        compiled=compiled,
     )
     if fit is None:
         return None, raw
@@ -243,6 +246,7 @@ def _fit_beep(
     hop: int,
     background: bool,
     min_bursts: int,
+    compiled: bool = False,
 ) -> tuple[list[EdgeFit | None], list[bool]]:
     """Edge fits of every burst of the beep starting near sample ``a``.
 
@@ -268,7 +272,9 @@ def _fit_beep(
     for k in range(beep.n_bursts):
         p = int(round(a + k * spacing))
         seg, mask, raw, off = cond.segment(p + u0 - margin, p + u1 + margin)
-        f = _stat_on(seg, None, False, off, p, u0, width, fs=fs, beep=beep, bg=background)
+        f = _stat_on(
+            seg, None, False, off, p, u0, width, fs=fs, beep=beep, bg=background, compiled=compiled
+        )
         if cond.is_clipped(p + u0 - margin, p + u1 + margin):
             # Clipped: a clipped tone's band-limited edge saturates (and its aliased
             # harmonics reach the band), so the statistic is also computed on the raw
@@ -288,6 +294,7 @@ def _fit_beep(
                 fs=fs,
                 beep=beep,
                 bg=background,
+                compiled=compiled,
             )
             if scale_raw * float(f_raw.max()) >= F_MIN * scale_raw:
                 f = scale_raw * f_raw
@@ -338,6 +345,7 @@ def _fit_beep(
                 background=background,
                 mask=cond.clipped[r0:r1],
                 dc=True,
+                compiled=compiled,
             )
             clipped[k] = True
             if fit is not None:
@@ -354,6 +362,7 @@ def _fit_beep(
             background=background,
             mask=mask,
             dc=raw,
+            compiled=compiled,
         )
         if fit is not None:
             fits[k] = replace(fit, onset=fit.onset + off)
@@ -387,6 +396,7 @@ def _stat_on(
     fs: float,
     beep: Beep,
     bg: bool,
+    compiled: bool = False,
 ) -> np.ndarray:
     """Edge statistic of ``seg`` (recording samples from ``off``) at onsets ``p + u0 ...
     p + u0 + width - 1``; 0 where the window does not fit."""
@@ -395,7 +405,17 @@ def _stat_on(
     hi = min(p + u0 + width - 1 - off, len(seg) - post - 4)
     f = np.zeros(width)
     if hi >= lo:
-        fk = edge_statistic(seg, fs=fs, beep=beep, lo=lo, hi=hi, background=bg, mask=mask, dc=raw)
+        fk = edge_statistic(
+            seg,
+            fs=fs,
+            beep=beep,
+            lo=lo,
+            hi=hi,
+            background=bg,
+            mask=mask,
+            dc=raw,
+            compiled=compiled,
+        )
         j0 = lo + off - p - u0
         f[j0 : j0 + len(fk)] = fk
     return f
@@ -427,13 +447,21 @@ def find_bursts(
         lookback=int(math.ceil(LOOKBACK_S * fs / hop)),
     )
     cond = _conditioner(x, fs=fs, beep=beep, condition=condition)
+    compiled = len(x) >= _edge_kernels.NUMBA_MIN_SAMPLES
     on, sg, snr = [], [], []
     last = -math.inf
     for m in frames:
         if m * hop - last < beep.burst_s * fs:
             continue
         fit, raw = _fit_at(
-            cond, int(m) * hop, fs=fs, beep=beep, n_win=n_win, hop=hop, background=background
+            cond,
+            int(m) * hop,
+            fs=fs,
+            beep=beep,
+            n_win=n_win,
+            hop=hop,
+            background=background,
+            compiled=compiled,
         )
         if fit is not None and fit.f_stat >= F_MIN * (1.0 if raw else cond.f_scale):
             on.append(fit.onset)
@@ -508,6 +536,28 @@ def _anchor(
     return int(round(c - best_j * spacing)), int(rising[best_j])
 
 
+def _anchors_compiled(
+    c: np.ndarray, cs: np.ndarray, n_e: int, *, hop: int, n_win: int, beep: Beep, fs: float
+) -> list[tuple[int, int]]:
+    """:func:`_anchor` of every change-point sample in ``c`` by one compiled loop
+    (``_edge_kernels._anchors_py``: the same arithmetic, so the same numbers)."""
+    if beep.n_bursts == 1:
+        return [(int(v), 1) for v in c.tolist()]
+    out = _edge_kernels.call(
+        "anchors",
+        np.ascontiguousarray(c, dtype=np.int64),
+        np.ascontiguousarray(cs, dtype=np.float64),
+        int(n_e),
+        int(hop),
+        max(1, n_win // hop),
+        max(1, int((beep.burst_s * fs - 2 * n_win) / hop)),
+        float(beep.spacing_s * fs),
+        int(beep.n_bursts),
+        float(MIN_RISE_DB),
+    )
+    return [(int(a), int(r)) for a, r in out.tolist()]
+
+
 def _combine(
     fits: list[EdgeFit | None],
     clipped: list[bool],
@@ -580,12 +630,16 @@ def _resolve_aliases(rows: list[tuple], *, tol: float) -> list[tuple]:
     beep: the one with the larger summed edge statistic stays.
     """
     keep = [True] * len(rows)
+    ons = [r[4][np.isfinite(r[4])] for r in rows]
+    span = [(float(a.min()), float(a.max())) if len(a) else (math.inf, -math.inf) for a in ons]
     for i in range(len(rows)):
         for j in range(i + 1, len(rows)):
             if not (keep[i] and keep[j]):
                 continue
-            a, b = rows[i][4], rows[j][4]
-            a, b = a[np.isfinite(a)], b[np.isfinite(b)]
+            # Groups whose burst onsets lie more than tol apart share none (skip the test).
+            if span[i][0] > span[j][1] + tol or span[j][0] > span[i][1] + tol:
+                continue
+            a, b = ons[i], ons[j]
             shared = int(np.sum(np.min(np.abs(a[:, None] - b[None, :]), axis=1) <= tol))
             if shared >= 2 and abs(rows[i][0] - rows[j][0]) > tol:
                 weaker = i if rows[i][6] < rows[j][6] else j
@@ -703,13 +757,20 @@ def detect_changepoint(
         lookback=int(math.ceil(LOOKBACK_S * fs / hop)),
     )
     spacing = beep.spacing_s * fs
+    # Long recordings: numba is imported by band_energy already; the edge fits' kernels
+    # (rangekit.detect._edge_kernels) give the numpy path's numbers to rounding.
+    compiled = len(x) >= _edge_kernels.NUMBA_MIN_SAMPLES
     anchors: list[int] = []
     cs = np.concatenate(([0.0], np.cumsum(e)))
-    for m in frames.tolist():
-        a, n_rise = _anchor(
-            m * hop, e, hop=hop, n_win=n_win, spacing=spacing, beep=beep, fs=fs, cs=cs
-        )
-        if n_rise >= min_bursts and all(abs(a - b) > hop for b in anchors[-8:]):
+    if compiled:
+        starts = _anchors_compiled(frames * hop, cs, len(e), hop=hop, n_win=n_win, beep=beep, fs=fs)
+    else:
+        starts = [
+            _anchor(m * hop, e, hop=hop, n_win=n_win, spacing=spacing, beep=beep, fs=fs, cs=cs)
+            for m in frames.tolist()
+        ]
+    for a, n_rise in starts:
+        if n_rise >= min(2, min_bursts) and all(abs(a - b) > hop for b in anchors[-8:]):
             anchors.append(a)
     cond = _conditioner(x, fs=fs, beep=beep, condition=condition)
     live = floor[floor > 1e-12 * float(floor.max())] if len(floor) and floor.max() > 0 else floor
@@ -734,6 +795,7 @@ def detect_changepoint(
             hop=hop,
             background=background,
             min_bursts=min_bursts,
+            compiled=compiled,
         )
         res = _combine(fits, clipped, spacing=spacing, scale=fs / 44100.0, min_bursts=min_bursts)
         if res is None:
