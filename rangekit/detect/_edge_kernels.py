@@ -20,7 +20,8 @@ Each is the numpy code of :mod:`rangekit.detect.refine` (the reference, used for
 inputs and tested against these kernels, ``tests/detect/test_edge_kernels.py``) written as
 loops; they agree to rounding (the order of the sums and LU against Cholesky differ).
 :func:`_anchors_py` is :func:`rangekit.detect.changepoint._anchor` over all change points
-at once (the same arithmetic in the same order, so the same numbers).
+at once (the same arithmetic in the same order, so the same numbers); :func:`_fir_py` is
+:func:`rangekit.detect.condition.bandlimit` of the stretch one fit reads (to rounding).
 
 Import cost: numba is imported on first use only. Like :func:`rangekit.detect._kernels
 .band_energy`, the detector uses these kernels only for recordings of at least
@@ -431,7 +432,30 @@ def _anchors_py(
     return out
 
 
+def _fir_py(x: np.ndarray, hr: np.ndarray, half: int, start: int, count: int) -> np.ndarray:
+    """``condition.bandlimit`` of ``x`` at output samples ``start ... start + count - 1``.
+
+    ``out[j] = sum_k h[k] x[start + j + half - k]`` (samples outside ``x`` are zero), with
+    ``hr`` the taps reversed so that each output is one contiguous dot product.
+    """
+    n_h = hr.shape[0]
+    n = x.shape[0]
+    # The samples the outputs reach, zero outside x; then tap by tap over all outputs
+    # (an axpy per tap, which vectorises).
+    base = start + half - (n_h - 1)
+    xp = np.zeros(count + n_h - 1, dtype=np.float64)
+    for i in range(max(0, -base), min(xp.shape[0], n - base)):
+        xp[i] = x[base + i]
+    out = np.zeros(count, dtype=np.float64)
+    for m in range(n_h):
+        hm = hr[m]
+        for j in range(count):
+            out[j] += hm * xp[j + m]
+    return out
+
+
 _KERNELS = {
+    "fir": _fir_py,
     "edge_stat": _edge_stat_py,
     "masked_stat": _masked_stat_py,
     "refine": _refine_py,
@@ -453,8 +477,9 @@ def _compiled(name: str, cache: bool = True):
     if not isinstance(g["_env"], numba.core.registry.CPUDispatcher):
         for fn in _HELPERS:
             g[fn.__name__] = numba.njit(cache=True, nogil=True)(fn)
-    # Stage 1's dot products may be reassociated (vectorised); the rest keeps IEEE order.
-    fm = {"reassoc", "contract"} if name == "edge_stat" else False
+    # Stage 1's and the FIR's dot products may be reassociated (vectorised, like numpy's
+    # own); the rest keeps IEEE order.
+    fm = {"reassoc", "contract"} if name in ("edge_stat", "fir") else False
     return numba.njit(cache=cache, nogil=True, fastmath=fm)(_KERNELS[name])
 
 

@@ -29,6 +29,7 @@ Notes
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass, replace
 
@@ -158,6 +159,9 @@ class _Conditioner:
     x: np.ndarray
     taps: np.ndarray | None
     clipped: np.ndarray | None
+    #: Band-limit with the compiled FIR (``_edge_kernels._fir_py``: the same numbers to
+    #: rounding) instead of ``condition.bandlimit``.
+    compiled: bool = False
 
     @property
     def f_scale(self) -> float:
@@ -180,9 +184,16 @@ class _Conditioner:
         if self.taps is None:
             return self.x[a:b], None, False, a
         h = (len(self.taps) - 1) // 2
+        if self.compiled:
+            y = _edge_kernels.call("fir", self.x, self._taps_reversed, h, a, max(b - a, 0))
+            return y, None, False, a
         a0, b0 = max(0, a - h), min(len(self.x), b + h)
         y = bandlimit(self.x[a0:b0], self.taps)
         return y[a - a0 : a - a0 + (b - a)], None, False, a
+
+    @functools.cached_property
+    def _taps_reversed(self) -> np.ndarray:
+        return np.ascontiguousarray(self.taps[::-1], dtype=np.float64)
 
     def is_clipped(self, a: int, b: int) -> bool:
         """Whether clipped samples lie in ``[a, b)``."""
@@ -446,8 +457,8 @@ def find_bursts(
         floor=floor,
         lookback=int(math.ceil(LOOKBACK_S * fs / hop)),
     )
-    cond = _conditioner(x, fs=fs, beep=beep, condition=condition)
     compiled = len(x) >= _edge_kernels.NUMBA_MIN_SAMPLES
+    cond = _conditioner(x, fs=fs, beep=beep, condition=condition, compiled=compiled)
     on, sg, snr = [], [], []
     last = -math.inf
     for m in frames:
@@ -477,11 +488,14 @@ def _floor(e: np.ndarray, *, fs: float, hop: int) -> np.ndarray:
     return local_floor(e, block=max(16, int(round(FLOOR_BLOCK_S * fs / hop))))
 
 
-def _conditioner(x: np.ndarray, *, fs: float, beep: Beep, condition: bool) -> _Conditioner:
+def _conditioner(
+    x: np.ndarray, *, fs: float, beep: Beep, condition: bool, compiled: bool = False
+) -> _Conditioner:
     if not condition:
         return _Conditioner(x, None, None)
     clipped = clip_mask(x)
-    return _Conditioner(x, beep_taps(beep, fs), clipped if clipped.any() else None)
+    taps = beep_taps(beep, fs)
+    return _Conditioner(x, taps, clipped if clipped.any() else None, compiled)
 
 
 def _anchor(
@@ -772,7 +786,7 @@ def detect_changepoint(
     for a, n_rise in starts:
         if n_rise >= min(2, min_bursts) and all(abs(a - b) > hop for b in anchors[-8:]):
             anchors.append(a)
-    cond = _conditioner(x, fs=fs, beep=beep, condition=condition)
+    cond = _conditioner(x, fs=fs, beep=beep, condition=condition, compiled=compiled)
     live = floor[floor > 1e-12 * float(floor.max())] if len(floor) and floor.max() > 0 else floor
     quiet = float(np.percentile(live, 10.0)) if len(live) else 0.0
     oob = _out_of_band(x, cond) if condition else False
