@@ -72,9 +72,10 @@ LOOKBACK_S = 0.004
 #: the pyroomacoustics corpus (``rangekit.experiments.realistic``) so that 2-sigma covers
 #: 90-97 % of the two-way errors (docs/accuracy.md).
 MODEL_SIGMA = 1.0
-#: Rise of the band energy at a burst place that counts as a burst there, dB (a beep's
-#: start needs ``min_bursts`` such places; a change point in noise has one).
-MIN_RISE_DB = 3.0
+#: Rise of the band energy at a burst place that counts as a burst there, dB: a beep's
+#: start needs two such places before its bursts are fitted (a change point in noise has
+#: one; a far beep in a reverberant room rises only 2-3 dB at some of its places).
+MIN_RISE_DB = 1.5
 #: Median burst SNR below which an arrival is flagged ``low_snr``, dB.
 LOW_SNR_DB = 10.0
 #: Length of the stretches with their own noise floor, s (automatic-gain steps, noise
@@ -519,7 +520,7 @@ def _anchor(
     beep start ``c - j spacing``. A rise, not a level: a loud beep's reverberation has
     energy at the burst places of a faint beep that follows, but it does not rise there.
     Returns the beep start and how many of its burst places rise ``MIN_RISE_DB`` or more
-    (a change point in noise has one such place at most).
+    (a change point in noise has one such place, usually).
     """
     k_b = beep.n_bursts
     if k_b == 1:
