@@ -186,7 +186,6 @@ def test_detections_equal_on_a_clipped_recording(monkeypatch):
 
 
 def test_detections_equal_in_a_pyroomacoustics_room(monkeypatch):
-    pytest.importorskip("pyroomacoustics")
     from rangekit.experiments.realistic import draw_room, render_exchange
 
     rng = np.random.default_rng(11)

@@ -19,9 +19,7 @@ rooms`` reruns this corpus and a larger one): far arrival found in 32 / 32; cali
 from __future__ import annotations
 
 import numpy as np
-import pytest
-
-pytest.importorskip("pyroomacoustics")
+import pyroomacoustics  # noqa: F401  (a test dependency: fail, do not skip, without it)
 
 from rangekit.errors import DetectionError
 from rangekit.io.audio import Channel
