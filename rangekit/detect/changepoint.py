@@ -175,22 +175,19 @@ class _Conditioner:
         """
         return 1.0 if self.taps is None else 1.0 / float(self.taps @ self.taps)
 
-    def segment(self, a: int, b: int) -> tuple[np.ndarray, np.ndarray | None, bool, int]:
-        """``(samples, mask, raw, offset)`` for the stretch ``[a, b)`` of the recording.
-
-        ``mask`` is None and ``raw`` False when the stretch is band-limited; ``raw`` is
-        True (and ``mask`` the clipped samples) when the fit must read raw samples.
-        """
+    def segment(self, a: int, b: int) -> tuple[np.ndarray, int]:
+        """``(samples, offset)``: the stretch ``[a, b)`` of the recording, band-limited
+        (raw without conditioning); ``offset`` is its first sample's index."""
         a, b = max(0, a), min(len(self.x), b)
         if self.taps is None:
-            return self.x[a:b], None, False, a
+            return self.x[a:b], a
         h = (len(self.taps) - 1) // 2
         if self.compiled:
             y = _edge_kernels.call("fir", self.x, self._taps_reversed, h, a, max(b - a, 0))
-            return y, None, False, a
+            return y, a
         a0, b0 = max(0, a - h), min(len(self.x), b + h)
         y = bandlimit(self.x[a0:b0], self.taps)
-        return y[a - a0 : a - a0 + (b - a)], None, False, a
+        return y[a - a0 : a - a0 + (b - a)], a
 
     @functools.cached_property
     def _taps_reversed(self) -> np.ndarray:
@@ -221,7 +218,7 @@ def _fit_at(
     hop: int,
     background: bool,
     compiled: bool = False,
-) -> tuple[EdgeFit | None, bool]:
+) -> EdgeFit | None:
     """Edge fit of a burst whose change point is at sample ``c``.
 
     The onset is searched in ``[c - n_win/2 - lookback, c + n_win + hop]``: the band
@@ -231,21 +228,11 @@ def _fit_at(
     """
     lo, hi = c - n_win // 2 - int(round(LOOKBACK_S * fs)), c + n_win + hop
     margin = int(math.ceil(48 * fs / 44100.0 + beep.taper_s * fs)) + 8
-    seg, mask, raw, off = cond.segment(lo - margin, hi + margin)
+    seg, off = cond.segment(lo - margin, hi + margin)
     fit = fit_edge(
-        seg,
-        fs=fs,
-        beep=beep,
-        lo=lo - off,
-        hi=hi - off,
-        background=background,
-        mask=mask,
-        dc=raw,
-        compiled=compiled,
+        seg, fs=fs, beep=beep, lo=lo - off, hi=hi - off, background=background, compiled=compiled
     )
-    if fit is None:
-        return None, raw
-    return replace(fit, onset=fit.onset + off), raw
+    return None if fit is None else replace(fit, onset=fit.onset + off)
 
 
 def _fit_beep(
@@ -283,7 +270,7 @@ def _fit_beep(
     scale_raw = cond.f_scale ** (2.0 / 3.0)
     for k in range(beep.n_bursts):
         p = int(round(a + k * spacing))
-        seg, mask, raw, off = cond.segment(p + u0 - margin, p + u1 + margin)
+        seg, off = cond.segment(p + u0 - margin, p + u1 + margin)
         f = _stat_on(
             seg, None, False, off, p, u0, width, fs=fs, beep=beep, bg=background, compiled=compiled
         )
@@ -308,9 +295,9 @@ def _fit_beep(
                 bg=background,
                 compiled=compiled,
             )
-            if scale_raw * float(f_raw.max()) >= F_MIN * scale_raw:
+            if float(f_raw.max()) >= F_MIN:
                 f = scale_raw * f_raw
-        segs.append((seg, mask, raw, off, p))
+        segs.append((seg, off, p))
         stats.append(f)
         widened.append(maximum_filter1d(f, size=5, mode="constant"))
     joint = np.sum(widened, axis=0)
@@ -336,7 +323,7 @@ def _fit_beep(
         # just before a beep): another change point's window holds the whole edge.
         return fits, clipped
 
-    for k, ((seg, mask, raw, off, p), f) in enumerate(zip(segs, stats, strict=True)):
+    for k, ((seg, off, p), f) in enumerate(zip(segs, stats, strict=True)):
         j0, j1 = max(0, u - 2), min(width, u + 3)
         j = j0 + int(np.argmax(f[j0:j1]))
         if f[j] < f_min:
@@ -372,8 +359,6 @@ def _fit_beep(
             a=a_k - off,
             f_stat=float(f[j]),
             background=background,
-            mask=mask,
-            dc=raw,
             compiled=compiled,
         )
         if fit is not None:
@@ -465,7 +450,7 @@ def find_bursts(
     for m in frames:
         if m * hop - last < beep.burst_s * fs:
             continue
-        fit, raw = _fit_at(
+        fit = _fit_at(
             cond,
             int(m) * hop,
             fs=fs,
@@ -475,7 +460,7 @@ def find_bursts(
             background=background,
             compiled=compiled,
         )
-        if fit is not None and fit.f_stat >= F_MIN * (1.0 if raw else cond.f_scale):
+        if fit is not None and fit.f_stat >= F_MIN * cond.f_scale:
             on.append(fit.onset)
             sg.append(fit.sigma)
             snr.append(fit.snr_db)
