@@ -43,6 +43,7 @@ Examples
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import dataclass
@@ -54,7 +55,7 @@ from rangekit.errors import InvalidParameterError
 from rangekit.signals.barker import CodedBurst, burst_waveform, check_burst_fits
 from rangekit.signals.spectrum import rms_bandwidth_hz
 from rangekit.signals.transducer import Transducer, apply_chain
-from rangekit.types import Arrivals
+from rangekit.types import Arrivals, flag_bit
 
 __all__ = [
     "DEFAULT_BLOCK",
@@ -68,6 +69,7 @@ __all__ = [
     "detect_matched",
     "first_path",
     "interp_peak",
+    "matched_filter",
     "noise_level",
     "weighting_response",
     "welch_spectra",
@@ -255,6 +257,35 @@ class MatchedFilter:
         x = V.signal_1d("x", x)
         xp = np.concatenate([np.zeros(self.pre), x, np.zeros(self.n_taps)])
         return self._segments(xp, len(x))
+
+    def correlate_spans(self, x: np.ndarray, spans: np.ndarray) -> list[np.ndarray]:
+        """Analytic correlation at the lags ``[a, b)`` of each span only.
+
+        Equal to ``correlate(x)[a:b]`` for every row ``(a, b)`` of ``spans`` (``0 <= a <=
+        b <= len(x)``), at the cost of the spans' total length rather than the whole
+        signal's: the spans' inputs (each with the template's reach) are laid end to end
+        and correlated by the same overlap-save blocks; outputs that would straddle two
+        pieces are never read.
+        """
+        x = V.signal_1d("x", x)
+        sp = np.asarray(spans, dtype=np.int64).reshape(-1, 2)
+        if len(sp) == 0:
+            return []
+        n = len(x)
+        reach = self.n_taps
+        pieces, offsets, total = [], [], 0
+        for a, b in sp.tolist():
+            if not 0 <= a <= b <= n:
+                raise InvalidParameterError(f"span [{a}, {b}) is not within [0, {n}]")
+            lo, hi = a - self.pre, b - self.pre + reach
+            piece = x[max(lo, 0) : min(hi, n)]
+            if lo < 0 or hi > n:
+                piece = np.concatenate([np.zeros(max(0, -lo)), piece, np.zeros(max(0, hi - n))])
+            pieces.append(piece)
+            offsets.append(total)
+            total += len(piece)
+        out = self._segments(np.concatenate(pieces), total)
+        return [out[o : o + (b - a)] for o, (a, b) in zip(offsets, sp.tolist(), strict=True)]
 
     def stream(self, chunks: Iterable[np.ndarray]) -> Iterator[np.ndarray]:
         """Correlate a signal given as consecutive chunks; yields output chunks in order.
@@ -821,6 +852,61 @@ def crb_delay_s(
     return math.sqrt(float(np.linalg.inv(J)[0, 0]))
 
 
+#: Lags each side of a window's search range whose envelope the first-path rule reads
+#: beyond the self response's reach.
+_SPAN_PAD = 2
+#: Fewest envelope samples the noise level of a window is estimated from (the search range
+#: is widened within the window to this many where it is shorter).
+NOISE_MIN_SPAN = 8192
+#: Fewest samples before an arrival its fit's noise level is taken from.
+NOISE_MIN_PRE = 512
+#: An arrival below this many times ``k_detect`` noise scales is flagged ``low_snr``
+#: (13.5, 22.6 dB: below it a direct path 3.5 dB weaker than the chosen one, e.g. the
+#: 1.5x reflection of a ceiling bounce taken for the first path, is within 2 noise
+#: scales of the first-path threshold ``k_noise`` and may have been missed).
+LOW_SNR_FACTOR = 3.0
+#: ``poor_match`` when the fitted model leaves this fraction of the arrival's energy
+#: unexplained (beyond the noise), with the excess ``POOR_MATCH_Z`` deviations up.
+POOR_MATCH_MISFIT = 0.05
+POOR_MATCH_Z = 5.0
+#: The fitted model's misfit counts in sigma beyond this many deviations of the noise.
+MISFIT_Z_FREE = 3.0
+#: ``ambiguous_first_path`` when a stronger path follows the first one within this many
+#: times the model's resolution (half width of its autocorrelation envelope at one half).
+AMBIGUOUS_RESOLUTIONS = 1.0
+
+
+@functools.lru_cache(maxsize=8)
+def _cached_filter(key: bytes, n: int, block: int) -> MatchedFilter:
+    return MatchedFilter(np.frombuffer(key, dtype=np.float64, count=n), block=block)
+
+
+def matched_filter(template: np.ndarray, *, block: int = DEFAULT_BLOCK) -> MatchedFilter:
+    """A :class:`MatchedFilter` of ``template``, shared between calls with equal templates."""
+    h = np.ascontiguousarray(V.signal_1d("template", template), dtype=np.float64)
+    return _cached_filter(h.tobytes(), len(h), int(block))
+
+
+def _window_spans(windows, n, lo, hi, m):
+    """Per window: the lags ``[a, b)`` whose correlation the search and noise need."""
+    out = []
+    for s0, s1 in windows:
+        s0, s1 = max(0, int(s0)), min(n, int(s1))
+        if s1 - s0 < 3:
+            out.append((s0, s0))
+            continue
+        l_, h_ = (0, s1 - s0) if lo is None else (lo, hi)
+        a = max(s0, s0 + int(l_) - m - _SPAN_PAD)
+        b = min(s1, s0 + int(h_) + m + _SPAN_PAD)
+        if b - a < NOISE_MIN_SPAN:  # widen within the window for a robust noise level
+            extra = NOISE_MIN_SPAN - (b - a)
+            a2 = max(s0, a - extra // 2)
+            b = min(s1, b + extra - (a - a2))
+            a = max(s0, min(a2, b - NOISE_MIN_SPAN))
+        out.append((a, max(a, b)))
+    return np.array(out, dtype=np.int64).reshape(-1, 2)
+
+
 def detect_matched(
     x: np.ndarray,
     *,
@@ -832,6 +918,10 @@ def detect_matched(
     rel_threshold: float = DEFAULT_REL_THRESHOLD,
     k_detect: float = DEFAULT_K_DETECT,
     block: int = DEFAULT_BLOCK,
+    model=None,
+    q0: float = 4.0,
+    groups: Sequence[int] | None = None,
+    pool: bool = True,
 ) -> Arrivals:
     """First-path arrivals of ``template`` in one channel, one per window at most.
 
@@ -853,6 +943,23 @@ def detect_matched(
         Detection and first-path thresholds (see :func:`first_path`).
     block : int
         Overlap-save FFT size.
+    model : rangekit.detect.pathfit.ResonatorModel, optional
+        Time each arrival by fitting the drive through resonators of unknown Q and f0,
+        with overlapping paths (:func:`rangekit.detect.pathfit.fit_arrival`), instead of
+        the template's peak: the template then only finds the arrivals. Default None: the
+        template's envelope peak (its transducers assumed known).
+    q0 : float
+        With ``model``: the Q the first fit of each group starts its scan from (later
+        arrivals of the group start from the group's estimate).
+    groups : sequence of int, optional
+        With ``model``: a label per window; windows with equal labels went through the
+        same transducers (e.g. the transmitter id of each activation window), so their
+        ``(Q, f0)`` estimates are pooled (:func:`rangekit.detect.pathfit.pool_fits`).
+        Default: all windows one group.
+    pool : bool
+        With ``model``: pool the groups' estimates (default True). False: every arrival
+        is fitted on its own (Q and f0 free), so its result does not depend on the other
+        windows (slower).
 
     Returns
     -------
@@ -861,29 +968,45 @@ def detect_matched(
         (windows with none are dropped; ``window`` holds the window index of each),
         ``sigma`` its 1-sigma in samples, ``snr_db`` the matched-filter output SNR
         ``10 log10(2 E / N0)``, ``confidence`` the first path's height over the strongest
-        peak's, ``burst_onsets[:, 0]`` the onset again (one burst per arrival).
+        peak's, ``burst_onsets[:, 0]`` the onset again (one burst per arrival), ``flags``
+        ``low_snr`` below ``LOW_SNR_FACTOR * k_detect`` noise scales and, with ``model``,
+        ``poor_match`` (the fitted model leaves more than ``POOR_MATCH_MISFIT`` of the
+        energy unexplained) and ``ambiguous_first_path`` (a stronger path within the
+        model's resolution after the first one).
     """
     fs = V.sample_rate(fs)
     x = V.signal_1d("x", x)
-    mf = MatchedFilter(template, block=block)
-    c = mf.correlate(x)
-    env = np.abs(c)
+    mf = matched_filter(template, block=block)
     beta = rms_bandwidth_hz(mf.template, fs=fs)
     if windows is None:
         windows = np.array([[0, len(x)]])
     windows = np.asarray(windows, dtype=np.int64).reshape(-1, 2)
-    rows = []
+    lo, hi = (None, None) if search is None else (int(search[0]), int(search[1]))
+    m = len(mf.self_response) // 2
+    spans = _window_spans(windows, len(x), lo, hi, m)
+    corr = mf.correlate_spans(x, spans)
+    noise_scale = 1.0 / math.sqrt(mf.energy)  # envelope noise scale -> per-sample sigma
+    labels = np.zeros(len(windows), dtype=np.int64) if groups is None else np.asarray(groups)
+    if len(labels) != len(windows):
+        raise InvalidParameterError(f"groups has {len(labels)} labels for {len(windows)} windows")
+    rows: list[list] = []
+    fits: list = []
+    early: list[bool] = []
+    warm: dict = {}
+    low = LOW_SNR_FACTOR * k_detect
     for w, (s0, s1) in enumerate(windows):
         s0, s1 = max(0, int(s0)), min(len(x), int(s1))
-        if s1 - s0 < 3:
+        a, b = (int(v) for v in spans[w])
+        if s1 - s0 < 3 or b - a < 3:
             continue
-        seg = env[s0:s1]
-        lo, hi = (0, s1 - s0) if search is None else search
+        cw = corr[w]
+        l_, h_ = (0, s1 - s0) if lo is None else (lo, hi)
+        noise = noise_level(np.abs(cw))
         p = first_path(
-            c[s0:s1],
-            lo=lo,
-            hi=hi,
-            noise=noise_level(seg),
+            cw,
+            lo=l_ - (a - s0),
+            hi=h_ - (a - s0),
+            noise=noise,
             k_noise=k_noise,
             rel_threshold=rel_threshold,
             k_detect=k_detect,
@@ -891,9 +1014,50 @@ def detect_matched(
         )
         if p is None:
             continue
-        top = float(seg[int(round(p.strongest_lag))])
+        fit = None
+        if model is not None:
+            sigma_fit = _sample_noise(x[s0 : max(s0, a + int(p.lag) - mf.n_taps)])
+            if not 0.1 * noise * noise_scale <= sigma_fit <= 2.0 * noise * noise_scale:
+                sigma_fit = noise * noise_scale
+            fit = _fit_window(
+                x, a + p.lag, model, sigma_fit, q0, warm if pool else {},
+                int(labels[w]),
+                k_noise, rel_threshold, s0 + l_, s0 + h_, low,
+            )  # fmt: skip
+        top = float(np.abs(cw[int(round(p.strongest_lag))]))
         sigma = 1.0 / (2.0 * math.pi * beta * p.snr) * fs if p.snr > 0 else math.inf
-        rows.append((s0 + p.lag, sigma, 20.0 * math.log10(max(p.snr, 1e-300)), p.height / top, w))
+        rows.append([a + p.lag, sigma, p.snr, p.height / top, w])
+        fits.append(fit)
+        first = (fit.onset if fit is not None else a + p.lag) - a
+        early.append(
+            _earlier_candidate(
+                cw, lo=l_ - (a - s0), first=first, noise=noise, reach=mf.n_taps,
+                k=0.5 * (k_detect + k_noise), rel=rel_threshold,
+            )
+        )  # fmt: skip
+    if model is not None and pool and rows:
+        from rangekit.detect.pathfit import pool_fits
+
+        wl = np.array([r[4] for r in rows])
+        for g in np.unique(labels[wl]):
+            idx = np.flatnonzero(labels[wl] == g)
+            pooled, _ = pool_fits([fits[i] for i in idx])
+            for i, f in zip(idx.tolist(), pooled, strict=True):
+                fits[i] = f
+    flags = np.zeros(len(rows), dtype=np.int64)
+    for i, f in enumerate(fits):
+        if f is not None:
+            rows[i][0] = f.onset
+            rows[i][1] = _fit_sigma(f, fs)
+            rows[i][2] = f.snr
+            rows[i][3] = float(f.amplitudes[f.first] / f.amplitudes.max())
+            flags[i] |= _fit_flags(f)
+        elif model is not None:
+            flags[i] |= flag_bit("poor_match")  # nothing the model could fit
+        if rows[i][2] < low:
+            flags[i] |= flag_bit("low_snr")
+        if early[i]:
+            flags[i] |= flag_bit("ambiguous_first_path")
     if not rows:
         e = Arrivals.empty(fs=fs, n_bursts=1, detector="matched")
         return Arrivals(
@@ -906,9 +1070,127 @@ def detect_matched(
             "matched",
             np.zeros(0, dtype=int),
         )
-    a = np.array(rows, dtype=np.float64)
-    onset = a[:, 0]
-    conf = np.minimum(a[:, 3], 1.0)
+    arr = np.array(rows, dtype=np.float64)
+    onset = arr[:, 0]
+    snr_db = 20.0 * np.log10(np.maximum(arr[:, 2], 1e-300))
+    conf = np.minimum(arr[:, 3], 1.0)
     return Arrivals(
-        onset, fs, a[:, 1], a[:, 2], conf, onset[:, None].copy(), "matched", a[:, 4].astype(int)
+        onset,
+        fs,
+        arr[:, 1],
+        snr_db,
+        conf,
+        onset[:, None].copy(),
+        "matched",
+        arr[:, 4].astype(int),
+        flags,
     )
+
+
+#: Free fits (Q and f0 estimated) of a group before later arrivals hold the group's
+#: estimate during their fits (they still inform the pooled estimate).
+N_FREE_FITS = 3
+
+
+def _fit_window(x, lag, model, sigma, q0, warm, g, k_noise, rel_threshold, lo, hi, low):
+    """The transducer fit of one window's arrival; updates the group's running estimate.
+
+    ``warm[g]`` holds ``[sum info, sum info theta, n, theta_held]``: the group's arrivals
+    so far (above the low-SNR level). The first ``N_FREE_FITS`` are fitted with Q and f0
+    free; later ones hold ``theta_held``, refreshed when the count doubles, unless the
+    arrival's own estimate disagrees with it by more than 4 sigma (then refitted free).
+    """
+    from rangekit.detect.pathfit import fit_arrival
+
+    acc = warm.get(g)
+    kw = {"k_noise": k_noise, "rel_threshold": rel_threshold, "lo": lo, "hi": hi}
+    fit = None
+    if acc is not None and acc[2] >= N_FREE_FITS:
+        th = acc[3]
+        fit = fit_arrival(x, lag, model=model, sigma=sigma, q0=math.exp(th[0]), f0=th[1],
+                          hold=True, **kw)  # fmt: skip
+        if fit is not None:
+            dev = fit.theta_hat - th
+            if float(dev @ fit.info @ dev) > 16.0:
+                fit = None
+    if fit is None:
+        fit = fit_arrival(x, lag, model=model, sigma=sigma, q0=q0, **kw)
+    if fit is not None and fit.snr >= low and np.linalg.det(fit.info) > 0:
+        if acc is None:
+            acc = warm[g] = [np.zeros((2, 2)), np.zeros(2), 0, None]
+        acc[0] = acc[0] + fit.info
+        acc[1] = acc[1] + fit.info @ fit.theta_hat
+        acc[2] += 1
+        n = acc[2]
+        if n >= N_FREE_FITS and (acc[3] is None or n & (n - 1) == 0):
+            try:
+                acc[3] = np.linalg.solve(acc[0], acc[1])
+            except np.linalg.LinAlgError:
+                acc[3] = fit.theta_hat
+    return fit
+
+
+def _fit_sigma(f, fs: float) -> float:
+    """A fit's onset sigma (samples) with the model-error term of its misfit.
+
+    A model that leaves a fraction ``eps`` of the arrival's energy unexplained can move
+    the onset by about ``sqrt(eps)`` of the waveform's duration scale (the shape term of
+    ``rangekit.detect.template``, ``sqrt(eps) / (2 pi beta)``), taken here as the fitted
+    model's resolution (the half width of its autocorrelation envelope at one half). Only
+    the misfit beyond 3 standard deviations of the noise's chi-square counts: below that
+    it is the noise's own scatter, which the Cramér-Rao term already holds.
+    """
+    z = f.misfit_z
+    eps = max(f.misfit, 0.0) * (1.0 - MISFIT_Z_FREE / z) if z > MISFIT_Z_FREE else 0.0
+    return math.sqrt(f.sigma**2 + eps * f.resolution**2)
+
+
+def _sample_noise(x: np.ndarray) -> float:
+    """Standard deviation per sample of the noise in ``x`` (NaN if too short).
+
+    The transducer fit compares its residual with this, sample by sample, so it must be
+    the raw samples' noise, and precise: the matched-filter envelope's median has too few
+    independent samples (its correlation length is the template's) for a chi-square test
+    over a few hundred samples. Taken before the arrival (in a room, later reflections
+    fill the rest of the window); robust to a few outliers (samples beyond 5 MAD-based
+    deviations are left out).
+    """
+    if len(x) < NOISE_MIN_PRE:
+        return math.nan
+    d = x - np.median(x)
+    s = 1.4826 * float(np.median(np.abs(d)))
+    if not s > 0:
+        return math.nan
+    return float(np.std(d[np.abs(d) < 5.0 * s]))
+
+
+def _earlier_candidate(c, *, lo, first, noise, reach, k, rel) -> bool:
+    """Whether the envelope holds a peak the first-path rule passed over, well before it.
+
+    A local maximum earlier than the first path by more than the template's reach (so
+    not its own side lobe), above ``k`` noise scales (between the detection and the
+    first-path thresholds: a direct path weaker than a reflection at low SNR) and above
+    ``rel`` times the first path's height.
+    """
+    env = np.abs(c)
+    i1 = int(math.floor(first)) - int(reach)
+    i0 = max(1, int(lo))
+    if i1 - i0 < 3 or not 0 <= int(round(first)) < len(env):
+        return False
+    seg = env[i0:i1]
+    h = float(env[int(round(first))])
+    thr = max(k * noise, rel * h)
+    cand = (seg > thr) & (seg >= env[i0 - 1 : i1 - 1]) & (seg >= env[i0 + 1 : i1 + 1])
+    return bool(np.any(cand))
+
+
+def _fit_flags(f) -> int:
+    bits = 0
+    if f.misfit > POOR_MATCH_MISFIT and f.misfit_z > POOR_MATCH_Z:
+        bits |= flag_bit("poor_match")
+    t0 = f.onsets[f.first]
+    a0 = f.amplitudes[f.first]
+    later = (f.onsets > t0) & (f.onsets - t0 <= AMBIGUOUS_RESOLUTIONS * f.resolution)
+    if np.any(later & (f.amplitudes > a0)):
+        bits |= flag_bit("ambiguous_first_path")
+    return bits
