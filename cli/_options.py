@@ -20,6 +20,23 @@ class FiniteRange(click.FloatRange):
         return v
 
 
+class QOrAuto(click.ParamType):
+    """``auto`` or a finite quality factor in [0, 100] (``--q``)."""
+
+    name = "auto|Q"
+
+    def convert(self, value, param, ctx):
+        if isinstance(value, str) and value.strip().lower() == "auto":
+            return "auto"
+        try:
+            v = float(value)
+        except (TypeError, ValueError):
+            self.fail(f"{value!r} is neither 'auto' nor a number", param, ctx)
+        if not (math.isfinite(v) and 0.0 <= v <= 100.0):
+            self.fail(f"{value!r} is not 'auto' or within [0, 100]", param, ctx)
+        return v
+
+
 def beep_options(f):
     """--freq/--bursts/--spacing/--burst-len/--taper/--beep-fs: the beep that was played."""
     opts = [
@@ -132,9 +149,13 @@ def ultrasonic_options(f):
         click.option(
             "--q",
             "q",
-            type=FiniteRange(0.0, 100.0),
+            type=QOrAuto(),
             default=None,
-            help="Q of the transducers folded into the template; 0 = bare drive [4].",
+            help="oneway: Q of the Tx and Rx transducers. auto = unknown: every arrival is "
+            "timed by fitting the burst through resonators of unknown Q and f0 (with "
+            "overlapping reflections), the estimates pooled per receiver and transmitter; Q = "
+            "known, folded into the template; 0 = the bare drive (the transducers' delay "
+            "stays in the ranges) [auto]. echo: the template's Q (auto = 4).",
         ),
         click.option(
             "--code",
@@ -290,7 +311,8 @@ def ultrasonic_kwargs(kw: dict, *, scheme: str, temp_c: float, speed: float | No
             raise click.UsageError(f"{opt} applies to --scheme beepbeep only")
     burst = make_burst(kw, scheme=scheme)
     q = kw.get("q")
-    trans = None if q == 0 else Transducer(q=4.0 if q is None else q)
+    auto = q is None or q == "auto"
+    trans = None if q == 0 else Transducer(q=4.0 if auto else q)
     lo = kw.get("min_range")
     hi = kw.get("max_range")
     args: dict = {"temp_c": temp_c, "speed_m_s": speed, "period_s": kw.get("period")}
@@ -304,6 +326,7 @@ def ultrasonic_kwargs(kw: dict, *, scheme: str, temp_c: float, speed: float | No
         args.update(
             tx=trans,
             rx=trans,
+            fit_transducers=auto,
             latency_s=kw.get("latency") or 0.0,
             tx_ids=tx_order,
             min_range_m=0.0 if lo is None else lo,

@@ -98,6 +98,9 @@ class ToF:
         Matched-filter output SNR ``10 log10(2 E / N0)``; NaN if none.
     arrival_s : float
         Arrival time from the window's start (latency included), seconds; NaN if none.
+    flags : tuple of str
+        The arrival's flags (:data:`rangekit.types.ARRIVAL_FLAGS`: ``low_snr``,
+        ``poor_match``, ``ambiguous_first_path``); empty when none or nothing detected.
     """
 
     window: int
@@ -107,6 +110,7 @@ class ToF:
     sigma_m: float
     snr_db: float
     arrival_s: float
+    flags: tuple[str, ...] = ()
 
     def as_dict(self) -> dict:
         """Plain-JSON form; NaN becomes None (null)."""
@@ -176,14 +180,24 @@ def _ranges(
     thresholds: dict,
     block: int,
     first_window: int = 0,
+    model=None,
+    q0: float = 4.0,
+    pool: bool = True,
 ) -> list[ToF]:
     """Shared core: per channel, per window first paths -> distances ``scale*c*(t - off)``.
 
     Window ``w`` of ``windows`` is numbered ``first_window + w`` (its transmitter too).
+    With ``model`` the arrivals are timed by the transducer fit, whose ``(Q, f0)``
+    estimates are pooled per channel and transmitter (``tx_ids``; all windows of a channel
+    when None).
     """
     lo = max(0, int(math.floor(lo_s * fs)) - 1)
     hi = int(math.ceil(hi_s * fs)) + 2
     rows: list[ToF] = []
+    groups = None
+    if tx_ids is not None:
+        k = first_window + np.arange(len(windows))
+        groups = np.asarray(tx_ids, dtype=np.int64)[k % len(tx_ids)]
     for ch in range(x.shape[0]):
         arr = detect_matched(
             x[ch],
@@ -192,6 +206,10 @@ def _ranges(
             windows=windows,
             search=(lo, hi),
             block=block,
+            model=model,
+            q0=q0,
+            groups=groups,
+            pool=pool,
             **thresholds,
         )
         found = dict(zip(arr.window.tolist(), range(len(arr)), strict=True))
@@ -205,7 +223,8 @@ def _ranges(
             t = (arr.onset[i] - s0) / fs
             d = scale * c * (t - offset_s)
             sig = scale * c * arr.sigma[i] / fs
-            rows.append(ToF(k, tx, ch, float(d), float(sig), float(arr.snr_db[i]), float(t)))
+            fl = arr.flag_names(i)
+            rows.append(ToF(k, tx, ch, float(d), float(sig), float(arr.snr_db[i]), float(t), fl))
     rows.sort(key=lambda r: (r.window, r.channel))
     return rows
 
@@ -268,6 +287,8 @@ def range_oneway(
     windows: np.ndarray | None = None,
     first_window: int = 0,
     probe: Probe | None = None,
+    fit_transducers: bool = True,
+    pool: bool = True,
 ) -> list[ToF]:
     """One-way (RF-synchronised) ranges from a recording whose sample 0 is the trigger.
 
@@ -280,8 +301,11 @@ def range_oneway(
     burst : CodedBurst, optional
         The emitted code (default Barker-7, 40 kHz, 3 cycles per bit; Kim & Kim 2013).
     tx, rx : Transducer or None
-        Transducer responses folded into the template (default Q = 4 each, as the
-        simulator uses). None leaves one out.
+        The transducers in the path (default Q = 4 each, as the simulator uses). With
+        ``fit_transducers`` they are only the starting point (their f0 centres the fit's
+        f0 range, the coarse detection template folds them in); otherwise their responses
+        are folded into the template as they are. None leaves one out; both None = the
+        bare drive (nothing fitted, the transducers' delay stays in the ranges).
     latency_s : float
         Known system latency from the trigger to the drive's start, subtracted (>= 0).
     temp_c, speed_m_s : float
@@ -310,6 +334,16 @@ def range_oneway(
         ``fs`` (:meth:`rangekit.signals.probe.Probe.at_rate`); ``burst``, ``tx`` and ``rx``
         are then unused (the recording's own responses stay in the arrival time, which a
         calibration's latency absorbs).
+    fit_transducers : bool
+        Time each arrival by fitting the drive through two resonators of unknown Q and f0,
+        with overlapping reflections (:mod:`rangekit.detect.pathfit`), so that the range
+        does not depend on knowing the transducers (default True; ``docs/theory/
+        ultrasonic.md``). False: the template of ``tx`` and ``rx`` is assumed right.
+    pool : bool
+        With ``fit_transducers``: pool the ``(Q, f0)`` estimates of every window of one
+        receiver and transmitter (``tx_ids``; all windows of the receiver without them)
+        when they agree, which brings each range's sigma down to the known-transducer
+        bound (default True).
 
     Returns
     -------
@@ -337,6 +371,9 @@ def range_oneway(
         x.shape[1], fs=fs, period_s=period_s, windows=windows, first_window=first_window
     )
     template = coded_template(burst, fs=fs, tx=tx, rx=rx) if probe is None else probe.at_rate(fs)
+    model, q0 = (
+        (None, 4.0) if probe is not None else _fit_model(burst, fs, (tx, rx), fit_transducers)
+    )
     return _ranges(
         x,
         fs=fs,
@@ -351,7 +388,22 @@ def range_oneway(
         thresholds={"k_noise": k_noise, "k_detect": k_detect, "rel_threshold": rel_threshold},
         block=block,
         first_window=first_window,
+        model=model,
+        q0=q0,
+        pool=pool,
     )
+
+
+def _fit_model(burst: CodedBurst, fs: float, transducers, fit: bool):
+    """The transducer fit's model and starting Q for ``transducers``, or ``(None, 4)``."""
+    ts = [t for t in transducers if t is not None]
+    if not fit or not ts:
+        return None, 4.0
+    from rangekit.detect.pathfit import ResonatorModel
+
+    f0 = sum(t.f0_hz for t in ts) / len(ts)
+    q0 = math.exp(sum(math.log(t.q) for t in ts) / len(ts))
+    return ResonatorModel.for_burst(burst, fs=fs, f0_hz=f0, stages=len(ts)), q0
 
 
 def range_echo(
@@ -465,7 +517,7 @@ def _calibrated(r: ToF, cal: Calibration, c: float) -> ToF:
     if not math.isfinite(r.arrival_s):
         return r
     d, s = cal.distance(r.arrival_s, r.sigma_m / c, speed_m_s=c)
-    return ToF(r.window, r.tx, r.channel, d, s, r.snr_db, r.arrival_s)
+    return ToF(r.window, r.tx, r.channel, d, s, r.snr_db, r.arrival_s, r.flags)
 
 
 def _no_burst_message(path, scheme: str) -> str:
@@ -551,7 +603,7 @@ def range_ultrasonic_files(
             d = r.as_dict()
             if scheme == "echo":
                 d.pop("tx")
-            rows.append({"file": str(p), **d})
+            rows.append({"file": str(p), **d, "flags": list(r.flags)})
     return rows
 
 
@@ -560,7 +612,7 @@ def format_tof(rows: list[dict], fmt: str, *, scheme: str, meta: dict | None = N
     from rangekit.io.results import format_rows
 
     fields = ["file", "window"] + (["tx"] if scheme == "oneway" else [])
-    fields += ["channel", "distance_m", "sigma_m", "snr_db", "arrival_s"]
+    fields += ["channel", "distance_m", "sigma_m", "snr_db", "arrival_s", "flags"]
     if fmt == "table":
         out = []
         for r in rows:
@@ -569,6 +621,7 @@ def format_tof(rows: list[dict], fmt: str, *, scheme: str, meta: dict | None = N
                 t[k] = "-" if r[k] is None else f"{r[k]:.{nd}f}"
             if "tx" in t and t["tx"] is None:
                 t["tx"] = "-"
+            t["flags"] = ",".join(r.get("flags") or ()) or "-"
             out.append(t)
         return format_rows(out, fields, fmt, meta=meta, key="ranges")
     if fmt == "csv":
