@@ -127,6 +127,22 @@ def test_unequal_transducers_fitted_as_one_equal_pair(model, qt, qr, bound_mm):
     assert min(qt, qr) < fit.q < max(qt, qr)
 
 
+@pytest.mark.parametrize(("q", "bound_mm"), [(4.0, 0.1), (12.0, 1.0), (20.0, 3.0)])
+def test_tx_and_rx_tuned_apart(model, q, bound_mm):
+    """A Tx at 39.5 kHz and an Rx at 40.5 kHz (the model has one f0): measured +0.04,
+    +0.53, +1.7 mm at Q 4, 12, 20. Both tuned off the carrier alike: exact."""
+    t0 = 1500.0
+    d = burst_waveform(CodedBurst(fs=FS))
+    x = np.zeros(4000)
+    x[1500 : 1500 + len(d)] = d
+    skew = Transducer(40500.0, q).apply(Transducer(39500.0, q).apply(x, fs=FS), fs=FS)
+    fit = fit_arrival(skew, t0, model=model, sigma=1e-7, q0=4.0)
+    assert abs(fit.onset - t0) / FS * 343.0 < bound_mm * 1e-3
+    same = Transducer(41000.0, q).apply(Transducer(41000.0, q).apply(x, fs=FS), fs=FS)
+    fit = fit_arrival(same, t0, model=model, sigma=1e-7, q0=4.0)
+    assert abs(fit.onset - t0) < 1e-3 and fit.f0_hz == pytest.approx(41000.0, rel=1e-6)
+
+
 def test_sigma_matches_the_scatter_of_noisy_fits(model):
     """40 noisy arrivals (Q 12, matched-filter SNR 30 dB): the fit's sigma (Q and f0
     unknown) is within 25 % of the onsets' scatter (measured 0.96), and above the
