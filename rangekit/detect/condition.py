@@ -157,16 +157,19 @@ def bandlimit(x: np.ndarray, taps: np.ndarray) -> np.ndarray:
     return np.ascontiguousarray(y[half : half + len(x)])
 
 
-def clip_mask(x: np.ndarray, *, rel_tol: float = 1e-4, min_run: int = 2) -> np.ndarray:
+def clip_mask(
+    x: np.ndarray, *, rel_tol: float = 1e-4, min_run: int = 2, min_count: int = 8
+) -> np.ndarray:
     """Boolean mask of clipped samples: runs at the recording's extreme values.
 
     A rail (the maximum, or the minimum) is clipped when at least one run of ``min_run``
-    consecutive samples lies within ``rel_tol`` of the peak-to-peak range of it: an
+    consecutive samples lies within ``rel_tol`` of the peak-to-peak range of it (an
     unclipped tone or sweep, sampled above twice its frequency, does not stay at its crest
-    for two samples, a clipped one does somewhere. Then every sample at that rail is
-    clipped (a clipped 16 kHz tone at 44.1 kHz mostly touches the rail one sample per half
-    cycle). Each rail is tested on its own (converters and limiters clip asymmetrically,
-    DC shifts the rails).
+    for two samples, a clipped one does somewhere), or when ``min_count`` samples or more
+    are exactly at it (a clipped 17-20 kHz sweep at 44.1 kHz touches the rail one sample
+    per half cycle and may never show a run; a sampled unclipped signal reaches its exact
+    extreme once). Then every sample at that rail is clipped. Each rail is tested on its
+    own (converters and limiters clip asymmetrically, DC shifts the rails).
 
     Examples
     --------
@@ -189,7 +192,8 @@ def clip_mask(x: np.ndarray, *, rel_tol: float = 1e-4, min_run: int = 2) -> np.n
             continue  # digital silence at a rail is not clipping
         # a run of min_run consecutive indices among the (few) samples at the rail
         step = np.diff(idx) == 1
-        if min_run <= 1 or _runs_at_least(step, min_run - 1).any():
+        at_rail = int(np.count_nonzero(x[idx] == rail))
+        if min_run <= 1 or at_rail >= min_count or _runs_at_least(step, min_run - 1).any():
             mask[idx] = True
     return mask
 

@@ -6,8 +6,8 @@ room or transducer (theory and measurements: ``docs/theory/probes.md``):
 
 1. **Template**: the probe at the recording's rate (:meth:`Probe.at_rate`: polyphase
    resampling when the rates differ, an error when its band does not fit).
-2. **Conditioning**: clipped samples (:func:`_clipped`, after
-   :func:`~rangekit.detect.condition.clip_mask`) are zeroed, so they stay out of the
+2. **Conditioning**: clipped samples (:func:`~rangekit.detect.condition.clip_mask`) are
+   zeroed, so they stay out of the
    correlation; the noise spectrum is estimated from the recording
    (:func:`~rangekit.detect.matched.welch_spectra`, a low percentile over segments) and
    the matched filter is weighted by it (``weighting``; default ``"ml"``, the
@@ -112,9 +112,6 @@ N_CLEAN_PATHS = 3
 #: A later peak is an earlier arrival's tail unless it exceeds that tail's extrapolated
 #: maximum by this factor (6 dB; :func:`_decay`).
 TAIL_MARGIN = 2.0
-#: Fewest samples at the rails (:func:`~rangekit.detect.condition.clip_mask`) that make
-#: a recording clipped.
-MIN_CLIPPED = 8
 #: ``low_snr``: the first path's SNR is below this multiple of the detection threshold.
 LOW_SNR_FACTOR = 2.0
 #: ``ambiguous_first_path``: another path within the resolution at least this fraction
@@ -271,7 +268,7 @@ def detect_template(
         lowband = False
         spectra = None
     else:
-        mask = _clipped(x)
+        mask = clip_mask(x)
         if mask.any():
             x = np.where(mask, 0.0, x)
         else:
@@ -369,19 +366,6 @@ def detect_template(
     return Arrivals(
         onset, fs, a[:, 1], a[:, 2], a[:, 3], onset[:, None].copy(), "template", None, flags
     )
-
-
-def _clipped(x: np.ndarray) -> np.ndarray:
-    """Clipped samples: :func:`~rangekit.detect.condition.clip_mask` (runs at the rails),
-    and single samples exactly at a rail when at least :data:`MIN_CLIPPED` are (a clipped
-    17-20 kHz sweep at 44.1 kHz stays at the rail one sample per half cycle; a sampled
-    unclipped signal reaches its exact extreme once)."""
-    mask = clip_mask(x)
-    for rail in (float(x.max()), float(x.min())):
-        at = x == rail
-        if rail != 0.0 and int(at.sum()) >= MIN_CLIPPED:
-            mask |= at
-    return mask
 
 
 def _select(
