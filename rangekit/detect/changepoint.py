@@ -431,17 +431,8 @@ def find_bursts(
     condition: bool = True,
 ) -> BurstCandidates:
     """Find and time every burst onset in ``x`` (no grouping into beeps)."""
-    n_win, hop = _stft_params(fs, win_s, hop_s)
-    e = band_energy(x, fs=fs, f_hz=np.array([beep.f_hz]), n_win=n_win, hop=hop)
-    floor = _floor(e, fs=fs, hop=hop)
-    frames = _change_points(
-        e,
-        n_win=n_win,
-        hop=hop,
-        threshold_db=threshold_db,
-        rise_db=rise_db,
-        floor=floor,
-        lookback=int(math.ceil(LOOKBACK_S * fs / hop)),
+    n_win, hop, _, _, frames = _candidates(
+        x, fs=fs, beep=beep, win_s=win_s, hop_s=hop_s, threshold_db=threshold_db, rise_db=rise_db
     )
     compiled = len(x) >= _edge_kernels.NUMBA_MIN_SAMPLES
     cond = _conditioner(x, fs=fs, beep=beep, condition=condition, compiled=compiled)
@@ -466,6 +457,32 @@ def find_bursts(
             snr.append(fit.snr_db)
             last = m * hop
     return BurstCandidates(np.array(on), np.array(sg), np.array(snr), n_win, hop)
+
+
+def _candidates(
+    x: np.ndarray,
+    *,
+    fs: float,
+    beep: Beep,
+    win_s: float,
+    hop_s: float,
+    threshold_db: float,
+    rise_db: float,
+) -> tuple[int, int, np.ndarray, np.ndarray, np.ndarray]:
+    """``(n_win, hop, band energy, its local floor, change-point frames)`` of ``x``."""
+    n_win, hop = _stft_params(fs, win_s, hop_s)
+    e = band_energy(x, fs=fs, f_hz=np.array([beep.f_hz]), n_win=n_win, hop=hop)
+    floor = _floor(e, fs=fs, hop=hop)
+    frames = _change_points(
+        e,
+        n_win=n_win,
+        hop=hop,
+        threshold_db=threshold_db,
+        rise_db=rise_db,
+        floor=floor,
+        lookback=int(math.ceil(LOOKBACK_S * fs / hop)),
+    )
+    return n_win, hop, e, floor, frames
 
 
 def _floor(e: np.ndarray, *, fs: float, hop: int) -> np.ndarray:
@@ -744,17 +761,8 @@ def detect_changepoint(
     min_bursts = V.positive_int("min_bursts", min_bursts)
     if min_bursts > k_b:
         raise V.InvalidParameterError(f"min_bursts={min_bursts} exceeds n_bursts={k_b}")
-    n_win, hop = _stft_params(fs, win_s, hop_s)
-    e = band_energy(x, fs=fs, f_hz=np.array([beep.f_hz]), n_win=n_win, hop=hop)
-    floor = _floor(e, fs=fs, hop=hop)
-    frames = _change_points(
-        e,
-        n_win=n_win,
-        hop=hop,
-        threshold_db=threshold_db,
-        rise_db=rise_db,
-        floor=floor,
-        lookback=int(math.ceil(LOOKBACK_S * fs / hop)),
+    n_win, hop, e, floor, frames = _candidates(
+        x, fs=fs, beep=beep, win_s=win_s, hop_s=hop_s, threshold_db=threshold_db, rise_db=rise_db
     )
     spacing = beep.spacing_s * fs
     # Long recordings: numba is imported by band_energy already; the edge fits' kernels

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from typing import Protocol
 
 import numpy as np
 
@@ -29,6 +30,13 @@ from rangekit.sim.room import ShoeboxRoom
 
 __all__ = ["place_devices", "run_trials", "summarize"]
 
+
+class _Sized(Protocol):
+    """A room as :func:`place_devices` needs it: its size in metres."""
+
+    size_m: tuple[float, float, float]
+
+
 FAIL_M = 1.0
 
 
@@ -36,23 +44,28 @@ def place_devices(
     distance_m: float,
     *,
     n_devices: int = 2,
-    room: ShoeboxRoom | None,
+    room: ShoeboxRoom | _Sized | None,
     rng: np.random.Generator,
     margin_m: float = 0.2,
     heights_m: tuple[float, float] = (0.8, 1.6),
+    near_wall: bool = False,
     max_tries: int = 100000,
 ) -> list[np.ndarray]:
     """Device centres: the first two ``distance_m`` apart, the others random.
 
-    Centres are at hand height (``heights_m``) and, in a room, at least ``margin_m``
-    from the walls (free field: within a 20 m square). Raises ValueError when the
-    distance does not fit.
+    Centres are at hand height (``heights_m``) and, in a room (anything with a
+    ``size_m``), at least ``margin_m`` from the walls (free field: within a 20 m square);
+    with ``near_wall`` the first device is exactly ``margin_m`` from a random side wall.
+    Raises ValueError when the distance does not fit.
     """
     size = np.array(room.size_m) if room is not None else np.array([20.0, 20.0, 3.0])
     lo = np.array([margin_m, margin_m, heights_m[0]])
     hi = np.array([size[0] - margin_m, size[1] - margin_m, min(heights_m[1], size[2] - margin_m)])
     for _ in range(max_tries):
         a = rng.uniform(lo, hi)
+        if near_wall:
+            axis = int(rng.integers(0, 2))
+            a[axis] = margin_m if rng.random() < 0.5 else size[axis] - margin_m
         dz = rng.uniform(lo[2], hi[2]) - a[2]
         if abs(dz) >= distance_m:
             continue

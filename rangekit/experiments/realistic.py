@@ -147,33 +147,6 @@ def _phone(rng: np.random.Generator, centre: np.ndarray, self_m: float) -> tuple
     return centre + 0.5 * self_m * u, centre - 0.5 * self_m * u
 
 
-def _place(
-    rng: np.random.Generator,
-    size: np.ndarray,
-    distance_m: float,
-    *,
-    margin_m: float,
-    heights_m: tuple[float, float],
-    near_wall: bool,
-) -> tuple[np.ndarray, np.ndarray]:
-    lo = np.array([margin_m, margin_m, heights_m[0]])
-    hi = np.array([size[0] - margin_m, size[1] - margin_m, min(heights_m[1], size[2] - margin_m)])
-    for _ in range(10000):
-        a = rng.uniform(lo, hi)
-        if near_wall:
-            axis = int(rng.integers(0, 2))
-            a[axis] = margin_m if rng.random() < 0.5 else size[axis] - margin_m
-        dz = rng.uniform(lo[2], hi[2]) - a[2]
-        if abs(dz) >= distance_m:
-            continue
-        az = rng.uniform(0, 2 * math.pi)
-        horiz = math.sqrt(distance_m**2 - dz**2)
-        b = a + np.array([horiz * math.cos(az), horiz * math.sin(az), dz])
-        if np.all(b >= lo) and np.all(b <= hi):
-            return a, b
-    raise InvalidParameterError(f"distance_m={distance_m} does not fit in a {size.tolist()} room")
-
-
 def _clocked(x: np.ndarray, *, start: float, ppm: float, n_out: int) -> np.ndarray:
     """Device samples of the room-time signal ``x``: sample n is room sample start + n (1+e)."""
     from rangekit.sim._fracdelay import interp_bandlimited
@@ -244,8 +217,16 @@ def render_exchange(
     c = speed_of_sound_m_s(temp_c)
     src = _signal_samples(signal, fs)
     size = np.asarray(room.size_m, dtype=np.float64)
-    ca, cb = _place(
-        rng, size, distance_m, margin_m=margin_m, heights_m=heights_m, near_wall=near_wall
+    from rangekit.experiments.beepbeep_accuracy import place_devices
+
+    ca, cb = place_devices(
+        distance_m,
+        room=room,
+        rng=rng,
+        margin_m=margin_m,
+        heights_m=heights_m,
+        near_wall=near_wall,
+        max_tries=10000,
     )
     s = rng.uniform(*self_distance_m, size=2)
     spk0, mic0 = _phone(rng, ca, s[0])
