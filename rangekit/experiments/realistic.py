@@ -21,8 +21,10 @@ this module does not import it.
 
 Examples
 --------
->>> ex = render_exchange(np.random.default_rng(1), room=RoomSpec(size_m=(6, 5, 3),
-...                      absorption=0.3, max_order=3), distance_m=2.0)  # doctest: +SKIP
+>>> room = RoomSpec(size_m=(6, 5, 3), absorption=0.3, max_order=3)
+>>> ex = render_exchange(1, room=room, distance_m=2.0)
+>>> len(ex.recordings), round(ex.distance_m, 2)  # phones 2 m apart, speaker-to-mic truth
+(2, 2.0)
 """
 
 from __future__ import annotations
