@@ -34,7 +34,6 @@ import math
 from dataclasses import dataclass, replace
 
 import numpy as np
-from scipy.ndimage import maximum_filter1d
 
 from rangekit import _validate as V
 from rangekit.detect import _edge_kernels
@@ -299,7 +298,7 @@ def _fit_beep(
                 f = scale_raw * f_raw
         segs.append((seg, off, p))
         stats.append(f)
-        widened.append(maximum_filter1d(f, size=5, mode="constant"))
+        widened.append(_widen(f, 2))
     joint = np.sum(widened, axis=0)
     fits: list[EdgeFit | None] = [None] * beep.n_bursts
     clipped = [False] * beep.n_bursts
@@ -364,6 +363,21 @@ def _fit_beep(
         if fit is not None:
             fits[k] = replace(fit, onset=fit.onset + off)
     return fits, clipped
+
+
+def _widen(f: np.ndarray, half: int) -> np.ndarray:
+    """Running maximum of ``f`` over ``+-half`` samples, zeros beyond the ends (what
+    ``scipy.ndimage.maximum_filter1d(f, 2 * half + 1, mode="constant")`` gives for
+    ``f >= 0``, without importing scipy.ndimage when rangekit starts).
+
+    Examples
+    --------
+    >>> _widen(np.array([0.0, 0, 3, 0, 0, 0, 1]), 1).tolist()
+    [0.0, 3.0, 3.0, 3.0, 0.0, 1.0, 1.0]
+    """
+    p = np.concatenate([np.zeros(half), f, np.zeros(half)])
+    w = np.lib.stride_tricks.sliding_window_view(p, 2 * half + 1)
+    return w.max(axis=1)
 
 
 def _first_edge(stat: np.ndarray, frac: float, floor: float, *, sep: int) -> int:
