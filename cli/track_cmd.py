@@ -445,6 +445,13 @@ def _range_ekf(log, *, accel_psd, gate, cross_sign, smooth):
         "n_reinit": n_reinit,
         "n_skipped": int(trk.n_skipped),
     }
+    if smooth:
+        other = int(trk.same_line.size - trk.same_line.sum())
+        extra["n_epochs_other_branch"] = other
+        summary += (
+            f"; smoothed along the final best branch ({other} epochs where the causal "
+            "filter reported another)"
+        )
     return columns, rows, extra, summary
 
 

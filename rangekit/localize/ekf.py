@@ -493,7 +493,13 @@ def rts_smooth(xs_filt, Ps_filt, xs_pred, Ps_pred, Fs) -> tuple[np.ndarray, np.n
     Rauch, Tung & Striebel (1965); Bar-Shalom et al. (2001). Backwards from
     k = n-2: ``C_k = P_k F_k^T (P⁻_{k+1})^-1`` (a Cholesky solve),
     ``x^s_k = x_k + C_k (x^s_{k+1} - x⁻_{k+1})`` and
-    ``P^s_k = P_k + C_k (P^s_{k+1} - P⁻_{k+1}) C_k^T``, symmetrised.
+    ``P^s_k = P_k + C_k (P^s_{k+1} - P⁻_{k+1}) C_k^T``, evaluated in Joseph form,
+    ``(I - C_k F_k) P_k (I - C_k F_k)^T + C_k (Q_k + P^s_{k+1}) C_k^T`` with
+    ``Q_k = P⁻_{k+1} - F_k P_k F_k^T`` (clipped to PSD), and symmetrised: the sum of
+    positive semidefinite terms cannot turn indefinite by rounding, and
+    ``P_k - P^s_k = C_k (P⁻_{k+1} - P^s_{k+1}) C_k^T >= 0`` keeps it below the filter's.
+    The inputs must be one consistent run: ``P⁻_{k+1} >= F_k P_k F_k^T`` (a transition
+    that is not ``F_k``, such as a hypothesis jump, must be folded into ``Fs``).
 
     Examples
     --------
@@ -533,15 +539,30 @@ def rts_smooth(xs_filt, Ps_filt, xs_pred, Ps_pred, Fs) -> tuple[np.ndarray, np.n
             raise InvalidParameterError(f"{name} contains NaN or infinite values")
     xs = xf.copy()
     Ps = np.array([_symmetrise(p) for p in Pf]) if n else Pf.copy()
+    eye = np.eye(d)
     for k in range(n - 2, -1, -1):
+        Pk = Ps[k]
         Pk1 = _symmetrise(Pp[k + 1])
         L = _cholesky(f"Ps_pred[{k + 1}]", Pk1)
         # C^T = (P⁻_{k+1})^-1 F_k P_k
-        Ct = np.linalg.solve(L.T, np.linalg.solve(L, F[k] @ Ps[k]))
+        Ct = np.linalg.solve(L.T, np.linalg.solve(L, F[k] @ Pk))
         C = Ct.T
         xs[k] = xf[k] + C @ (xs[k + 1] - xp[k + 1])
-        Ps[k] = _symmetrise(Ps[k] + C @ (Ps[k + 1] - Pk1) @ C.T)
+        # Joseph form of P_k + C (P^s_{k+1} - P⁻_{k+1}) C^T: a sum of three positive
+        # semidefinite terms, with Q_k = P⁻_{k+1} - F_k P_k F_k^T (the process noise the
+        # filter added, projected onto the PSD cone against rounding)
+        A = eye - C @ F[k]
+        Qk = _psd_part(Pk1 - _symmetrise(F[k] @ Pk @ F[k].T))
+        Ps[k] = _symmetrise(A @ Pk @ A.T + C @ (Qk + Ps[k + 1]) @ C.T)
     return xs, Ps
+
+
+def _psd_part(M: np.ndarray) -> np.ndarray:
+    """The nearest (Frobenius) positive semidefinite matrix to the symmetric ``M``."""
+    w, V = np.linalg.eigh(M)
+    if w.size == 0 or w[0] >= 0:
+        return M
+    return _symmetrise((V * np.maximum(w, 0.0)) @ V.T)
 
 
 # --------------------------------------------------------------------------- jacobian

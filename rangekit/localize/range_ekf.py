@@ -365,7 +365,7 @@ def _run_single(c: _Ctx, e0: int, x0: np.ndarray, P0: np.ndarray):
     rows = [slice(ep.start[e], ep.start[e + 1]) for e in range(e0, ep.t_s.size)]
     acc_rows = [c.acc[r].copy() for r in rows]
     nis_rows = [c.nis[r].copy() for r in rows]
-    return xs, Ps, ll, acc_rows, nis_rows, (xs, Ps, xps, Pps), reinit
+    return xs, Ps, ll, acc_rows, nis_rows, (xs, Ps, xps, Pps, [None] * n), reinit
 
 
 def _h_rows(ep: _Epochs, rows: np.ndarray, rxy: np.ndarray):
@@ -523,16 +523,16 @@ def _run_bank(c: _Ctx, e0: int, hyps, step, *, n_keep: int, mirror: bool):
         cands = []
         mirrors = _mirror_map(ep, e, n_t) if mirror else []
         for h in bank:
-            variants = [(h.x, h.P, 0.0)]
+            variants = [(h.x, h.P, 0.0, None)]
             for T, shift, o in mirrors:
                 xm = T @ h.x + shift
                 if np.hypot(*(xm[o : o + 2] - h.x[o : o + 2])) > 0.25:
-                    variants.append((xm, T @ h.P @ T.T, MIRROR_PRIOR_NATS))
-            for xv, Pv, penalty in variants:
+                    variants.append((xm, T @ h.P @ T.T, MIRROR_PRIOR_NATS, T))
+            for xv, Pv, penalty, T in variants:
                 streak = h.streak.copy()
                 x, P, xp, Pp, ll, n_re, acc, nis = step(c, xv, Pv, streak, dt, e)
                 cum = h.cum + ll - penalty
-                cands.append((cum, x, P, xp, Pp, streak, h.slot, ll, acc, nis, n_re))
+                cands.append((cum, x, P, xp, Pp, streak, h.slot, ll, acc, nis, n_re, T))
         cands.sort(key=lambda r: -r[0])
         kept = []
         for cd in cands:
@@ -542,7 +542,9 @@ def _run_bank(c: _Ctx, e0: int, hyps, step, *, n_keep: int, mirror: bool):
             kept.append(cd)
             if len(kept) == n_keep:
                 break
-        hist.append([(cd[1], cd[2], cd[3], cd[4], cd[6], cd[7], cd[8], cd[9]) for cd in kept])
+        hist.append(
+            [(cd[1], cd[2], cd[3], cd[4], cd[6], cd[7], cd[8], cd[9], cd[11]) for cd in kept]
+        )
         # report the best hypothesis, but stay with the descendant of the one reported
         # last unless the best beats it by more than SWITCH_NATS (no flapping between
         # mirror images that explain the ranges equally well)
@@ -572,8 +574,29 @@ def _run_bank(c: _Ctx, e0: int, hyps, step, *, n_keep: int, mirror: bool):
         np.stack([r[1] for r in line]),
         np.stack([r[2] for r in line]),
         np.stack([r[3] for r in line]),
+        [r[8] for r in line],  # the mirror map applied before epoch k's prediction, or None
     )
     return xs, Ps, ll, acc_rows, nis_rows, smooth_in, n_reinit
+
+
+def _smooth_lineage(smooth_in, t_s: np.ndarray, n_t: int, q: np.ndarray):
+    """RTS over one lineage of the bank (Rauch et al. 1965 through
+    :func:`rangekit.localize.ekf.rts_smooth`).
+
+    A lineage that passed through a mirror hypothesis was predicted at epoch k+1 from
+    ``T x_k + shift`` (the reflection of :func:`_mirror_map`), not from ``x_k``; the
+    transition the smoother needs is then ``F_k T`` (the jump is part of the model the
+    filter ran). Using ``F_k`` alone made ``P⁻_{k+1}`` and ``F_k P_k F_k^T`` disagree
+    and the smoothed variances negative (issue 18).
+    """
+    xf, Pf, xp, Pp, jumps = smooth_in
+    d = 4 * n_t
+    Fs = np.empty((max(t_s.size - 1, 0), d, d))
+    for k, dt in enumerate(np.diff(t_s)):
+        F = cv_transition(dt, n_t, q)[0]
+        T = jumps[k + 1]
+        Fs[k] = F if T is None else F @ T
+    return rts_smooth(xf, Pf, xp, Pp, Fs)
 
 
 # --------------------------------------------------------------------------- results
@@ -612,6 +635,16 @@ class RangeTrack:
     n_skipped : int
         Epochs before the first one at which every target could be initialised.
     n_targets : int
+    x_line, P_line : ndarray or None
+        With ``smooth=True``: the filtered means and covariances of the hypothesis the
+        smoother follows (the lineage of the best final hypothesis). ``P_smooth <=
+        P_line`` at every epoch; the causal output ``P`` is the same where ``same_line``.
+    same_line : ndarray of bool or None
+        With ``smooth=True``: epochs at which the causal filter reported that lineage.
+        Elsewhere it reported another branch (e.g. the mirror image the later data
+        ruled out), and ``P`` and ``P_smooth`` condition on different hypotheses.
+    n_line_mirrors : int
+        Mirror jumps along the smoothed lineage.
     """
 
     t_s: np.ndarray
@@ -625,6 +658,10 @@ class RangeTrack:
     n_reinit: np.ndarray
     n_skipped: int
     n_targets: int
+    x_line: np.ndarray | None = None
+    P_line: np.ndarray | None = None
+    same_line: np.ndarray | None = None
+    n_line_mirrors: int = 0
 
     def _check(self, target: int) -> slice:
         if not 1 <= target <= self.n_targets:
@@ -772,12 +809,15 @@ def track_ranges(
                     Rejected(float(ep.row_t[r]), int(ep.a[r]) + 1, int(ep.b[r]) + 1,
                              float(ep.val[r]), float(nis_rows[kk][i]))
                 )  # fmt: skip
-    xsm = Psm = None
+    xsm = Psm = same = None
+    n_jumps = sum(T is not None for T in smooth_in[4])
     if smooth:
-        Fs = np.stack([cv_transition(dt, n_t, q)[0] for dt in np.diff(ep.t_s[e0:])])
-        Fs = Fs.reshape(-1, 4 * n_t, 4 * n_t)
-        xsm, Psm = rts_smooth(*smooth_in, Fs)
-    return RangeTrack(ep.t_s[e0:], xs, Ps, xsm, Psm, len(hyps), ll, rejected, n_reinit, e0, n_t)
+        xsm, Psm = _smooth_lineage(smooth_in, ep.t_s[e0:], n_t, q)
+        same = np.all(smooth_in[1] == Ps, axis=(1, 2)) & np.all(smooth_in[0] == xs, axis=1)
+    return RangeTrack(
+        ep.t_s[e0:], xs, Ps, xsm, Psm, len(hyps), ll, rejected, n_reinit, e0, n_t,
+        smooth_in[0] if smooth else None, smooth_in[1] if smooth else None, same, n_jumps,
+    )  # fmt: skip
 
 
 #: Columns of a track file written by :func:`track_rows` (``docs/formats.md``).
