@@ -213,6 +213,45 @@ class ResonatorModel:
         self._cache[key] = out
         return out
 
+    #: Number of transducer parameters ``theta = (log Q, f0)``.
+    n_theta = 2
+    #: Name of the transducer family (:attr:`PathFit.family`).
+    family = "resonator"
+
+    def theta_start(self, q: float, f0: float | None = None) -> np.ndarray:
+        """``theta = (log Q, f0)`` for a quality factor and resonance (clipped to the limits)."""
+        f0 = self.f0_hz if f0 is None else float(f0)
+        return self.theta_clip(np.array([math.log(q), f0]))
+
+    def theta_clip(self, theta: np.ndarray) -> np.ndarray:
+        """``theta`` inside the fit's limits (``Q_LIMITS``, f0 within ``F0_LIMIT``)."""
+        lq = min(max(float(theta[0]), math.log(Q_LIMITS[0])), math.log(Q_LIMITS[1]))
+        f = min(max(float(theta[1]), self.f0_hz * (1 - F0_LIMIT)), self.f0_hz * (1 + F0_LIMIT))
+        return np.array([lq, f])
+
+    def theta_step(self) -> np.ndarray:
+        """Largest Levenberg-Marquardt step of each parameter."""
+        return np.array([0.35, 0.01 * self.f0_hz])
+
+    def theta_variants(self, theta: np.ndarray) -> list[np.ndarray]:
+        """Broader models a merged pair of paths may hide behind (the two-path scan)."""
+        ds = (math.log(2.0), 0.5 * math.log(2.0), 0.0)
+        return [self.theta_clip(theta - np.array([d, 0.0])) for d in ds]
+
+    def scan_thetas(self, f0: float) -> list[np.ndarray]:
+        """The starting scan of a free fit (``SCAN_Q`` at ``f0``)."""
+        return [self.theta_start(q, f0) for q in SCAN_Q]
+
+    @staticmethod
+    def q_f0(theta: np.ndarray) -> tuple[float, float]:
+        """``(Q, f0)`` of ``theta``."""
+        return math.exp(float(theta[0])), float(theta[1])
+
+    def spectrum_t(self, theta: np.ndarray, derivs: bool = False):
+        """:meth:`spectrum` at ``theta``; with ``derivs`` ``(s, [ds/dtheta_i])``."""
+        out = self.spectrum(math.exp(float(theta[0])), float(theta[1]), derivs)
+        return (out[0], list(out[1:])) if derivs else out
+
     def energy(self, q: float, f0: float) -> float:
         """Energy ``sum s[n]^2`` of the real received waveform of unit amplitude."""
         s = self.spectrum(q, f0)
@@ -251,15 +290,63 @@ def _model(burst: CodedBurst, fs: float, f0: float, stages: int) -> ResonatorMod
     return ResonatorModel(burst_waveform(burst), fs=fs, f0_hz=f0, stages=stages)
 
 
+def _key(tag: str, theta: np.ndarray, *extra) -> tuple:
+    return (tag, *(float(v) for v in theta), *extra)
+
+
+def _energy(model, theta: np.ndarray) -> float:
+    """Energy ``sum s[n]^2`` of the real received waveform of unit amplitude at ``theta``."""
+    s = model.spectrum_t(theta)
+    return float(np.sum(np.abs(s) ** 2) / (2.0 * model.n_fft))
+
+
+def _energy_inside(model, theta: np.ndarray, n: int) -> np.ndarray:
+    """``E[j]``: energy of the unit waveform's first ``n - j`` samples (a path at lag ``j``
+    of an ``n``-sample segment, cut by the segment's end)."""
+    key = _key("cum", theta, int(n))
+    hit = model._cache.get(key)
+    if hit is None:
+        s = model.spectrum_t(theta)
+        w = model._shifted(s[None, :], np.zeros(1), n)[0].real
+        hit = np.cumsum(w * w)[::-1].copy()
+        model._cache[key] = hit
+    return hit
+
+
+def _residual_mf(model, r: np.ndarray, theta: np.ndarray) -> np.ndarray:
+    """Analytic matched filter of ``r`` with the model's waveform at ``theta``."""
+    m = model.n_fft
+    return _ifft(_rfft(r, n=m) * np.conj(model.spectrum_t(theta)), n=m)[: len(r)]
+
+
+def _resolution(model, theta: np.ndarray) -> float:
+    """Lag (samples) where the waveform's autocorrelation envelope falls to one half."""
+    key = _key("res", theta)
+    hit = model._cache.get(key)
+    if hit is not None:
+        return hit
+    s = model.spectrum_t(theta)
+    r = np.abs(np.fft.ifft(np.abs(s) ** 2, n=model.n_fft))
+    half = np.flatnonzero(r[: model.n_fft // 2] < 0.5 * r[0])
+    out = float(half[0]) if len(half) else float(model.n_fft // 2)
+    model._cache[key] = out
+    return out
+
+
+def _q_f0_resonator(theta: np.ndarray) -> tuple[float, float]:
+    return math.exp(float(theta[0])), float(theta[1])
+
+
 @dataclass(frozen=True)
 class PathFit:
     """The fitted paths of one arrival, and what its onset knows about the transducers.
 
-    The onset depends on the transducers' ``theta = (log Q, f0)``: along the fit's
-    profile ``onset(theta) = onset + gain . (theta - theta_lin)``. The arrival's own
-    estimate of ``theta`` is ``theta_hat`` with information matrix ``info`` (inverse
-    covariance); with it the onset is :attr:`onset` and its 1-sigma :attr:`sigma`.
-    :func:`pool_fits` replaces ``theta_hat`` by a pooled value.
+    The onset depends on the transducers' parameters ``theta`` (``(log Q, f0)`` for
+    :class:`ResonatorModel`, four for :class:`rangekit.detect.stagger.StaggerModel`):
+    along the fit's profile ``onset(theta) = onset + gain . (theta - theta_lin)``. The
+    arrival's own estimate of ``theta`` is ``theta_hat`` with information matrix ``info``
+    (inverse covariance); with it the onset is :attr:`onset` and its 1-sigma
+    :attr:`sigma`. :func:`pool_fits` replaces ``theta_hat`` by a pooled value.
 
     Attributes
     ----------
@@ -268,12 +355,13 @@ class PathFit:
         at ``theta_hat``.
     sigma : float
         Its 1-sigma in samples: the Cramér-Rao bound at the fit with ``theta`` known to
-        ``info`` (Q, f0, the other paths and every amplitude estimated).
+        ``info`` (the transducers, the other paths and every amplitude estimated).
     snr : float
         The first path's ``|alpha| sqrt(E) / sigma_noise`` (its matched-filter peak over
         the noise's Rayleigh scale, ``sqrt(2 E / N0)``).
     q, f0_hz : float
-        ``theta_hat`` as a quality factor and a resonance in Hz.
+        ``theta_hat`` as a quality factor and a resonance in Hz (for the stagger model
+        the element's Q if its two resonances were maximally flat, and their centre).
     onsets, amplitudes : ndarray
         Every fitted path (sorted by onset, at ``theta_lin``) and its ``|alpha|``.
     first : int
@@ -286,19 +374,27 @@ class PathFit:
     resolution : float
         Half width (samples) at which the model waveform's autocorrelation envelope falls
         to one half: paths closer than this are not resolved by a matched filter.
-    theta_lin : ndarray, shape (2,)
-        The ``(log Q, f0)`` the paths were fitted at (``theta_hat`` for a free fit, the
+    theta_lin : ndarray, shape (p,)
+        The ``theta`` the paths were fitted at (``theta_hat`` for a free fit, the
         group's estimate for a fit that held it).
-    gain : ndarray, shape (2,)
-        ``d onset / d theta`` along the profile (samples per unit log Q, per Hz).
+    gain : ndarray, shape (p,)
+        ``d onset / d theta`` along the profile (samples per unit of each parameter).
     var_given : float
         Variance of the onset with ``theta`` known (samples^2).
-    theta_hat : ndarray, shape (2,)
-        The arrival's own estimate of ``(log Q, f0)`` (or the pooled one).
-    info : ndarray, shape (2, 2)
+    theta_hat : ndarray, shape (p,)
+        The arrival's own estimate of ``theta`` (or the pooled one).
+    info : ndarray, shape (p, p)
         Information (inverse covariance) of ``theta_hat`` from this arrival alone.
     pooled : bool
         Whether ``theta_hat`` is a pooled value (:func:`pool_fits`).
+    family : str
+        The transducer model (``"resonator"`` or ``"stagger"``).
+    chi2 : float
+        The fit's residual sum of squares over the noise variance.
+    n_par : int
+        Parameters the fit estimated (3 per path, ``theta`` unless held).
+    q_of : callable, optional
+        Map from ``theta`` to ``(Q, f0)`` (default the resonator's ``(exp, id)``).
     """
 
     onset: float
@@ -318,6 +414,10 @@ class PathFit:
     theta_hat: np.ndarray
     info: np.ndarray
     pooled: bool = False
+    family: str = "resonator"
+    chi2: float = math.nan
+    n_par: int = 0
+    q_of: object = None
 
     @property
     def n_paths(self) -> int:
@@ -330,19 +430,20 @@ class PathFit:
         return int(np.argmax(self.amplitudes))
 
     def at(self, theta: np.ndarray, cov: np.ndarray, *, pooled: bool = True) -> PathFit:
-        """This fit with ``theta = (log Q, f0)`` known to covariance ``cov``."""
+        """This fit with ``theta`` known to covariance ``cov``."""
         from dataclasses import replace
 
         theta = np.asarray(theta, dtype=np.float64)
         cov = np.asarray(cov, dtype=np.float64)
         onset = self.onsets[self.first] + float(self.gain @ (theta - self.theta_lin))
         var = self.var_given + float(self.gain @ cov @ self.gain)
+        q, f0 = (self.q_of or _q_f0_resonator)(theta)
         return replace(
             self,
             onset=float(onset),
             sigma=math.sqrt(max(var, 0.0)),
-            q=math.exp(float(theta[0])),
-            f0_hz=float(theta[1]),
+            q=q,
+            f0_hz=f0,
             theta_hat=theta,
             pooled=pooled,
         )
@@ -351,28 +452,25 @@ class PathFit:
 @dataclass
 class _State:
     u: np.ndarray
-    logq: float
-    f0: float
+    theta: np.ndarray
     cost: float
     a: np.ndarray
     r: np.ndarray
     basis: np.ndarray
     gram_inv: np.ndarray  # (basis^T basis)^-1
-    jac: np.ndarray  # d model / d (u_1..u_K, [logq, f0]), unprojected
+    jac: np.ndarray  # d model / d (u_1..u_K, [theta]), unprojected
     with_theta: bool
 
 
-def _evaluate(
-    x: np.ndarray, model: ResonatorModel, u: np.ndarray, logq: float, f0: float,
-    with_theta: bool,
-) -> _State:  # fmt: skip
-    """Least-squares amplitudes, residual and model Jacobian at ``(u, logq, f0)``."""
+def _evaluate(x: np.ndarray, model, u: np.ndarray, theta: np.ndarray, with_theta: bool) -> _State:
+    """Least-squares amplitudes, residual and model Jacobian at ``(u, theta)``."""
     n, k = len(x), len(u)
+    theta = np.asarray(theta, dtype=np.float64)
     if with_theta:
-        s, sq, sf = model.spectrum(math.exp(logq), f0, derivs=True)
-        base = np.array([s, s * model._mjw, sq, sf])
+        s, ds = model.spectrum_t(theta, derivs=True)
+        base = np.array([s, s * model._mjw, *ds])
     else:
-        s = model.spectrum(math.exp(logq), f0)
+        s = model.spectrum_t(theta)
         base = np.array([s, s * model._mjw])
     ph = np.exp(np.multiply.outer(u, model._mjw))  # (k, L)
     specs = (base[:, None, :] * ph[None, :, :]).reshape(len(base) * k, -1)
@@ -396,9 +494,10 @@ def _evaluate(
 
     cols = list(comb(rows[k : 2 * k]))  # d/du_k: the path's own derivative only
     if with_theta:
-        cols.append(comb(rows[2 * k : 3 * k]).sum(axis=0))
-        cols.append(comb(rows[3 * k : 4 * k]).sum(axis=0))
-    return _State(u, logq, f0, float(r @ r), a, r, basis, gi, np.array(cols).T, with_theta)
+        for i in range(len(base) - 2):
+            cols.append(comb(rows[(2 + i) * k : (3 + i) * k]).sum(axis=0))
+    cost = float(r @ r) if np.all(np.isfinite(r)) else math.inf
+    return _State(u, theta, cost, a, r, basis, gi, np.array(cols).T, with_theta)
 
 
 def _projected(st: _State) -> np.ndarray:
@@ -408,35 +507,34 @@ def _projected(st: _State) -> np.ndarray:
 
 def fit_paths(
     x: np.ndarray,
-    model: ResonatorModel,
+    model,
     u0,
     *,
-    q0: float,
+    q0: float | None = None,
     f0: float | None = None,
+    theta: np.ndarray | None = None,
     fit_theta: bool = True,
     tol: float = 0.0,
     max_iter: int = MAX_ITER,
 ) -> _State:
-    """Levenberg-Marquardt fit of ``len(u0)`` paths (and ``log Q, f0``) to ``x``.
+    """Levenberg-Marquardt fit of ``len(u0)`` paths (and ``theta``) to ``x``.
 
-    Stops when the Gauss-Newton step would lower the cost by less than ``tol`` (e.g.
-    ``1e-3 sigma^2``: the parameters are then within a small fraction of their sigma of
-    the optimum). The returned state always carries the Jacobian columns of ``log Q``
-    and ``f0`` (for the information about them), also when they were held.
+    ``theta`` is the transducer model's starting point (default
+    ``model.theta_start(q0, f0)``). Stops when the Gauss-Newton step would lower the cost
+    by less than ``tol`` (e.g. ``1e-3 sigma^2``: the parameters are then within a small
+    fraction of their sigma of the optimum). The returned state carries the Jacobian
+    columns of ``theta`` (for the information about them) only when ``fit_theta``.
     """
     x = np.asarray(x, dtype=np.float64)
     u = np.asarray(u0, dtype=np.float64).copy()
     k = len(u)
-    f0 = model.f0_hz if f0 is None else float(f0)
-    lq_lo, lq_hi = math.log(Q_LIMITS[0]), math.log(Q_LIMITS[1])
-    f_lo, f_hi = model.f0_hz * (1 - F0_LIMIT), model.f0_hz * (1 + F0_LIMIT)
-    logq = min(max(math.log(q0), lq_lo), lq_hi)
+    th = model.theta_start(q0, f0) if theta is None else model.theta_clip(theta)
     u_lo, u_hi = -0.5 * len(model.drive), len(x) - 4.0
-    p = k + 2 if fit_theta else k
-    st = _evaluate(x, model, u, logq, f0, True)
+    p = k + model.n_theta if fit_theta else k
+    st = _evaluate(x, model, u, th, fit_theta)
     jp = _projected(st)[:, :p]
     lam = 1e-3
-    lim = np.array([4.0] * k + ([0.35, 0.01 * model.f0_hz] if fit_theta else []))
+    lim = np.concatenate([np.full(k, 4.0), model.theta_step() if fit_theta else []])
     for _ in range(max_iter):
         jtj = jp.T @ jp
         g = jp.T @ st.r
@@ -457,11 +555,8 @@ def fit_paths(
             # One scale for the whole step keeps its direction (onset and Q are coupled).
             step = step * min(1.0, float(np.min(lim / np.maximum(np.abs(step), 1e-300))))
             nu = np.clip(st.u + step[:k], u_lo, u_hi)
-            nlq, nf0 = st.logq, st.f0
-            if fit_theta:
-                nlq = min(max(st.logq + step[k], lq_lo), lq_hi)
-                nf0 = min(max(st.f0 + step[k + 1], f_lo), f_hi)
-            cand = _evaluate(x, model, nu, nlq, nf0, True)
+            nth = model.theta_clip(st.theta + step[k:]) if fit_theta else st.theta
+            cand = _evaluate(x, model, nu, nth, fit_theta)
             if cand.cost <= st.cost:
                 accepted = cand
                 lam = max(lam / 3.0, 1e-9)
@@ -469,10 +564,8 @@ def fit_paths(
             lam *= 10.0
         if accepted is None:
             break
-        small = (
-            np.all(np.abs(accepted.u - st.u) < 1e-4)
-            and abs(accepted.logq - st.logq) < 1e-6
-            and abs(accepted.f0 - st.f0) < 1e-3
+        small = np.all(np.abs(accepted.u - st.u) < 1e-4) and np.all(
+            np.abs(accepted.theta - st.theta) < 1e-6 * np.maximum(1.0, np.abs(st.theta))
         )
         gain = st.cost - accepted.cost
         st = accepted
@@ -482,29 +575,17 @@ def fit_paths(
     return st
 
 
-def _resolution(model: ResonatorModel, q: float, f0: float) -> float:
-    """Lag (samples) where the waveform's autocorrelation envelope falls to one half."""
-    key = ("res", float(q), float(f0))
-    hit = model._cache.get(key)
-    if hit is not None:
-        return hit
-    s = model.spectrum(q, f0)
-    r = np.abs(np.fft.ifft(np.abs(s) ** 2, n=model.n_fft))
-    half = np.flatnonzero(r[: model.n_fft // 2] < 0.5 * r[0])
-    out = float(half[0]) if len(half) else float(model.n_fft // 2)
-    model._cache[key] = out
-    return out
-
-
 def fit_arrival(
     x: np.ndarray,
     lag: float,
     *,
-    model: ResonatorModel,
+    model,
     sigma: float,
-    q0: float,
+    q0: float = 4.0,
     f0: float | None = None,
     hold: bool = False,
+    theta: np.ndarray | None = None,
+    start: np.ndarray | None = None,
     k_add: float = K_ADD,
     rel_add: float = REL_ADD,
     max_paths: int = MAX_PATHS,
@@ -522,17 +603,23 @@ def fit_arrival(
     lag : float
         Coarse first-path lag (e.g. from :func:`rangekit.detect.matched.first_path`);
         the segment starts ``PRE_S`` before it.
-    model : ResonatorModel
-        Drive and resonator model.
+    model : ResonatorModel or rangekit.detect.stagger.StaggerModel
+        Drive and transducer model.
     sigma : float
         Standard deviation of the white noise per sample (> 0).
     q0, f0 : float
-        Starting quality factor and resonance (default the model's nominal f0).
+        Starting quality factor and resonance (default the model's nominal f0), for a
+        :class:`ResonatorModel`.
     hold : bool
-        Hold ``(q0, f0)`` during the fit (e.g. a group's estimate from earlier arrivals
-        through the same transducers: faster, and :func:`pool_fits` still learns from
-        this arrival through its ``info``); default False: a scan over Q starts a fit of
-        everything.
+        Hold the transducers (``theta``, or ``(q0, f0)``) during the fit (e.g. a group's
+        estimate from earlier arrivals through the same transducers: faster, and
+        :func:`pool_fits` still learns from this arrival through its ``info``); default
+        False: a scan over Q (or the start ``theta``) starts a fit of everything.
+    theta : ndarray, optional
+        The model's parameters to start from or hold (instead of ``q0, f0``).
+    start : ndarray, optional
+        Absolute onsets of the paths to start a free fit from (with ``theta``; e.g. a
+        resonator fit's paths when the stagger model is tried), instead of the scan.
     k_add, rel_add, max_paths : float, float, int
         A further path is fitted at the residual's matched-filter peak while that peak
         clears ``k_add`` noise scales and its amplitude ``rel_add`` times the strongest
@@ -553,7 +640,7 @@ def fit_arrival(
     sigma = float(sigma)
     if not sigma > 0:
         sigma = 1e-12 * max(float(np.max(np.abs(x))), 1e-300)
-    f0 = model.f0_hz if f0 is None else float(f0)
+    th0 = model.theta_start(q0, f0) if theta is None else model.theta_clip(theta)
     res = n0 = None
     for attempt in range(2):
         n0 = max(0, int(math.floor(lag)) - model.pre)
@@ -561,16 +648,17 @@ def fit_arrival(
         seg = np.asarray(x[n0:n1], dtype=np.float64)
         if len(seg) < len(model.drive):
             return None
-        res = _paths(seg, model, sigma, q0, f0, hold, k_add, rel_add, max_paths)
+        u_start = None if start is None else np.asarray(start, dtype=np.float64) - n0
+        res = _paths(seg, model, sigma, th0, hold, k_add, rel_add, max_paths, u_start)
         if res is None:
             return None
         u_min = float(np.min(res.u))
         # A path at the very start may have begun before the segment: look earlier once.
-        if u_min < 0.25 * model.pre and n0 > 0 and attempt == 0:
+        if u_min < 0.25 * model.pre and n0 > 0 and attempt == 0 and start is None:
             lag = n0 + u_min
             continue
         break
-    return _summarize(res, seg, n0, model, sigma, k_noise, rel_threshold, lo, hi)
+    return _summarize(res, seg, n0, model, sigma, k_noise, rel_threshold, lo, hi, not hold)
 
 
 #: Quality factors of the scans that start a fit (log-spaced over the Q range).
@@ -596,44 +684,44 @@ def _misfit_z(st: _State, sigma: float, n_par: int) -> float:
     return (st.cost / sigma**2 - dof) / math.sqrt(2.0 * dof)
 
 
-def _scan_one(seg, model, f0, qs):
-    """Best single path over a grid of Q: the normalised matched-filter peak."""
-    best = (-1.0, 0, qs[0])
+def _scan_one(seg, model, thetas):
+    """Best single path over a list of ``theta``: the normalised matched-filter peak."""
+    best = (-1.0, 0, thetas[0])
     j_max = max(1, len(seg) - len(model.drive) // 2)
-    for q in qs:
-        c = model.residual_mf(seg, q, f0)[:j_max]
-        p = np.abs(c) ** 2 / model.energy(q, f0)
+    for th in thetas:
+        c = _residual_mf(model, seg, th)[:j_max]
+        p = np.abs(c) ** 2 / _energy(model, th)
         j = int(np.argmax(p))
         if p[j] > best[0]:
-            best = (float(p[j]), j, q)
+            best = (float(p[j]), j, th)
     return best
 
 
-def _well_posed(st: _State, model: ResonatorModel, amp_scale: float) -> bool:
+def _well_posed(st: _State, model, amp_scale: float) -> bool:
     """No two paths within ``MIN_SEP`` resolutions, no path above ``AMP_GUARD`` x scale."""
     if len(st.u) > 1:
-        res = _resolution(model, math.exp(st.logq), st.f0)
+        res = _resolution(model, st.theta)
         if float(np.min(np.diff(np.sort(st.u)))) < MIN_SEP * res:
             return False
     return float(_amps(st).max()) <= AMP_GUARD * amp_scale
 
 
-def _scan_two(seg, model, f0, qs, around: float, step: int = 1):
-    """Best pair of overlapping paths over Q, onset and separation (closed form).
+def _scan_two(seg, model, thetas, around: float, step: int = 1):
+    """Best pair of overlapping paths over ``theta``, onset and separation (closed form).
 
     For paths at integer onsets ``u1 < u2`` of one waveform the least-squares explained
     energy is ``2 c^H G^-1 c`` with ``c`` the analytic matched-filter outputs at the two
     onsets and ``G`` the waveform's analytic autocorrelation at 0 and ``u2 - u1`` (exact
     when both waveforms lie inside the segment). Separations from ``MIN_SEP`` to
-    ``SCAN_SEPS`` resolutions of each Q are tried, the first onset from ``SCAN_SEPS``
+    ``SCAN_SEPS`` resolutions of each model are tried, the first onset from ``SCAN_SEPS``
     resolutions before ``around`` (a one-path fit's onset, which a merged pair puts
     between its paths) to one after.
     """
     n = len(seg)
     j_max = max(2, n - len(model.drive) // 2)
     best = None
-    for q in qs:
-        res = _resolution(model, q, f0)
+    for th in thetas:
+        res = _resolution(model, th)
         d_lo = max(2, int(MIN_SEP * res))
         d_hi = min(int(SCAN_SEPS * res) + 1, j_max - 1)
         if d_hi <= d_lo:
@@ -642,10 +730,10 @@ def _scan_two(seg, model, f0, qs, around: float, step: int = 1):
         u1 = np.arange(max(0, int(around - SCAN_SEPS * res)), min(j_max, int(around + res) + 1))
         if len(u1) == 0:
             continue
-        s = model.spectrum(q, f0)
+        s = model.spectrum_t(th)
         rho = np.fft.ifft(np.abs(s) ** 2, n=model.n_fft)
         r0 = rho[0].real
-        c = model.residual_mf(seg, q, f0)
+        c = _residual_mf(model, seg, th)
         i2 = u1[None, :] + d[:, None]
         valid = i2 < j_max
         c1 = c[u1][None, :]
@@ -658,7 +746,7 @@ def _scan_two(seg, model, f0, qs, around: float, step: int = 1):
         k = int(np.argmax(pv))
         a, b = divmod(k, len(u1))
         if best is None or pv[a, b] > best[0]:
-            best = (float(pv[a, b]), int(u1[b]), int(u1[b] + d[a]), q)
+            best = (float(pv[a, b]), int(u1[b]), int(u1[b] + d[a]), th)
     return best
 
 
@@ -675,41 +763,45 @@ def _amps(st: _State) -> np.ndarray:
     return np.hypot(st.a[0::2], st.a[1::2])
 
 
-def _paths(seg, model, sigma, q0, f0, hold, k_add, rel_add, max_paths) -> _State | None:
+def _paths(seg, model, sigma, th0, hold, k_add, rel_add, max_paths, u_start=None):
     """Paths of one segment: a first fit, a two-path scan where one path does not
     explain it, then further paths at the residual's matched-filter peak, all refitted
-    jointly (``log Q, f0`` too unless ``hold``)."""
+    jointly (``theta`` too unless ``hold``)."""
     fit = not hold
     tol = 1e-3 * sigma**2
     j_max = max(1, len(seg) - len(model.drive) // 2)
-    # First path: from the held model's matched filter, or a scan over Q.
-    if hold:
-        e = model.energy(q0, f0)
-        c = np.abs(model.residual_mf(seg, q0, f0)[:j_max])
+    # First path: from the held model's matched filter, given onsets, or a scan over Q.
+    if hold or u_start is not None:
+        e = _energy(model, th0)
+        c = np.abs(_residual_mf(model, seg, th0)[:j_max])
         j = int(np.argmax(c))
         if c[j] / (sigma * math.sqrt(e)) < k_add:
             return None
-        u0, qi = _interp(c, j), q0
+        u_init, thi = [_interp(c, j)], th0
         amp_scale = float(c[j]) / e
+        if u_start is not None and len(u_start):
+            u_init = [float(v) for v in u_start]
     else:
-        p, j, qi = _scan_one(seg, model, f0, SCAN_Q)
+        p, j, thi = _scan_one(seg, model, model.scan_thetas(float(th0[1])))
         if math.sqrt(max(p, 0.0)) / sigma < k_add:
             return None
-        u0 = float(j)
-        amp_scale = math.sqrt(max(p, 0.0) / model.energy(qi, f0))
-    st = fit_paths(seg, model, [u0], q0=qi, f0=f0, fit_theta=fit, tol=tol)
+        u_init = [float(j)]
+        amp_scale = math.sqrt(max(p, 0.0) / _energy(model, thi))
+    st = fit_paths(seg, model, u_init, theta=thi, fit_theta=fit, tol=tol)
     amp_scale = max(amp_scale, float(_amps(st).max()))
-    n_theta = 2 if fit else 0
+    n_theta = model.n_theta if fit else 0
     # A reflection within about a resolution merges with the direct path into one wider
     # path (of higher Q): try two paths wherever Q is free (the few fits that set a
     # group's Q), and where a held Q leaves the one-path fit short.
-    if max_paths >= 2 and (fit or _misfit_z(st, sigma, 3 + n_theta) > Z_TWO_PATHS):
-        q1 = math.exp(st.logq)
-        qs = (q1 / 2.0, q1 / math.sqrt(2.0), q1) if fit else (q1,)
-        sc = _scan_two(seg, model, st.f0, qs, around=float(st.u[0]))
+    if (
+        max_paths >= 2
+        and len(st.u) == 1
+        and (fit or _misfit_z(st, sigma, 3 + n_theta) > Z_TWO_PATHS)
+    ):
+        ths = model.theta_variants(st.theta) if fit else [st.theta]
+        sc = _scan_two(seg, model, ths, around=float(st.u[0]))
         if sc is not None:
-            two = fit_paths(seg, model, [sc[1], sc[2]], q0=sc[3], f0=st.f0, fit_theta=fit,
-                            tol=tol)  # fmt: skip
+            two = fit_paths(seg, model, [sc[1], sc[2]], theta=sc[3], fit_theta=fit, tol=tol)
             amp2 = _amps(two)
             if (
                 st.cost - two.cost > k_add**2 * sigma**2
@@ -719,14 +811,14 @@ def _paths(seg, model, sigma, q0, f0, hold, k_add, rel_add, max_paths) -> _State
                 st = two
     n = len(seg)
     while len(st.u) < max_paths:
-        q, f = math.exp(st.logq), st.f0
-        e = model.energy_inside(q, f, n)[: n - 4]
-        c = np.abs(model.residual_mf(st.r, q, f)[: n - 4])
+        th = st.theta
+        e = _energy_inside(model, th, n)[: n - 4]
+        c = np.abs(_residual_mf(model, st.r, th)[: n - 4])
         z = c / (sigma * np.sqrt(e))
         j = int(np.argmax(z))
         if z[j] < k_add or float(c[j]) / e[j] < rel_add * float(_amps(st).max()):
             break
-        new = fit_paths(seg, model, [*st.u.tolist(), _interp(z, j)], q0=q, f0=f,
+        new = fit_paths(seg, model, [*st.u.tolist(), _interp(z, j)], theta=th,
                         fit_theta=fit, tol=tol)  # fmt: skip
         if new.cost >= st.cost or not _well_posed(new, model, amp_scale):
             break
@@ -734,14 +826,13 @@ def _paths(seg, model, sigma, q0, f0, hold, k_add, rel_add, max_paths) -> _State
     return st
 
 
-def _summarize(st, seg, n0, model, sigma, k_noise, rel_threshold, lo, hi) -> PathFit | None:
+def _summarize(st, seg, n0, model, sigma, k_noise, rel_threshold, lo, hi, free=True):
     """First path, information about ``theta`` and flags' inputs of a fitted segment."""
     if not st.with_theta:
-        st = _evaluate(seg, model, st.u, st.logq, st.f0, True)
-    q, f0 = math.exp(st.logq), st.f0
+        st = _evaluate(seg, model, st.u, st.theta, True)
     k = len(st.u)
     amp = _amps(st)
-    e = model.energy(q, f0)
+    e = _energy(model, st.theta)
     snr = amp * math.sqrt(e) / sigma
     u_abs = n0 + st.u
     inside = (u_abs >= lo - 1.0) & (u_abs < hi)
@@ -765,7 +856,8 @@ def _summarize(st, seg, n0, model, sigma, k_noise, rel_threshold, lo, hi) -> Pat
     except np.linalg.LinAlgError:
         return None
     S = C - B.T @ ai @ B
-    theta_lin = np.array([st.logq, st.f0])
+    p = model.n_theta
+    theta_lin = st.theta.copy()
     # One Newton step to the optimum in the onsets (~0 after a converged fit).
     newton = float((ai @ gu)[first])
     onset_lin = float(u_abs[first] + (newton if abs(newton) < 1.0 else 0.0))
@@ -776,8 +868,13 @@ def _summarize(st, seg, n0, model, sigma, k_noise, rel_threshold, lo, hi) -> Pat
         info = S / sigma**2
         cov_t = np.linalg.inv(info)
     except np.linalg.LinAlgError:
-        theta_hat, info, cov_t = theta_lin, np.zeros((2, 2)), np.zeros((2, 2))
+        theta_hat, info, cov_t = theta_lin, np.zeros((p, p)), np.zeros((p, p))
+    if not np.all(np.isfinite(theta_hat)) or np.any(
+        np.abs(theta_hat - theta_lin) > 3.0 * model.theta_step()
+    ):
+        theta_hat = theta_lin  # a Newton step beyond the fit's reach: keep the fit's value
     n = len(st.r)
+    n_par = 3 * k + (p if free else 0)
     dof = max(1, n - 2 * k - k - 2)
     sig_energy = float(np.sum((st.basis @ st.a) ** 2))
     misfit = (st.cost - dof * sigma**2) / sig_energy if sig_energy > 0 else 0.0
@@ -785,6 +882,7 @@ def _summarize(st, seg, n0, model, sigma, k_noise, rel_threshold, lo, hi) -> Pat
     onsets = u_abs[order].copy()
     first_s = int(np.flatnonzero(order == first)[0])
     onsets[first_s] = onset_lin
+    q, f0 = model.q_f0(theta_lin)
     fit = PathFit(
         onset=onset_lin,
         sigma=math.sqrt(var_given),
@@ -796,24 +894,28 @@ def _summarize(st, seg, n0, model, sigma, k_noise, rel_threshold, lo, hi) -> Pat
         first=first_s,
         misfit=float(misfit),
         misfit_z=float((st.cost / sigma**2 - dof) / math.sqrt(2.0 * dof)),
-        resolution=_resolution(model, q, f0),
+        resolution=_resolution(model, st.theta),
         theta_lin=theta_lin,
         gain=gain,
         var_given=var_given,
         theta_hat=theta_lin,
         info=info,
+        family=model.family,
+        chi2=float(st.cost / sigma**2),
+        n_par=n_par,
+        q_of=model.q_f0,
     )
     return fit.at(theta_hat, cov_t, pooled=False)
 
 
 def pool_fits(fits, *, max_chi2: float = 4.0):
-    """Pool ``(log Q, f0)`` over arrivals through the same transducers; condition onsets.
+    """Pool ``theta`` over arrivals through the same transducers; condition the onsets.
 
     ``fits`` are :class:`PathFit` (None entries are passed through) of one transducer
-    pair, e.g. one Tx and one receiver over many activation windows. Each contributes its
-    own estimate ``theta_hat`` with information ``info``; the pooled value is their
-    information-weighted mean over the fits within 4 sigma of it (others, e.g. a low-SNR
-    fit stuck at a bound, are left out of the mean but conditioned on it). If the
+    pair and one model, e.g. one Tx and one receiver over many activation windows. Each
+    contributes its own estimate ``theta_hat`` with information ``info``; the pooled value
+    is their information-weighted mean over the fits within 4 sigma of it (others, e.g. a
+    low-SNR fit stuck at a bound, are left out of the mean but conditioned on it). If the
     remaining spread exceeds ``max_chi2`` per degree of freedom, the arrivals did not go
     through one pair of transducers (or the model does not describe them well) and the
     fits are returned unchanged.
@@ -836,9 +938,10 @@ def pool_fits(fits, *, max_chi2: float = 4.0):
         return fits, False
     theta = np.array([fits[i].theta_hat for i in ok])
     w = np.array([fits[i].info for i in ok])
+    p = theta.shape[1]
     keep = np.ones(len(ok), bool)
     mean = theta[0]
-    cov = np.zeros((2, 2))
+    cov = np.zeros((p, p))
     d2 = np.zeros(len(ok))
     for _ in range(5):
         try:
@@ -848,13 +951,13 @@ def pool_fits(fits, *, max_chi2: float = 4.0):
         mean = cov @ np.einsum("nij,nj->i", w[keep], theta[keep])
         dev = theta - mean
         d2 = np.einsum("ni,nij,nj->n", dev, w, dev)
-        new_keep = d2 <= 16.0
+        new_keep = d2 <= 8.0 * p
         if new_keep.sum() < 2:
             return fits, False
         if np.array_equal(new_keep, keep):
             break
         keep = new_keep
-    dof = 2 * (int(keep.sum()) - 1)
+    dof = p * (int(keep.sum()) - 1)
     if float(d2[keep].sum()) > max_chi2 * dof:
         return fits, False
     out = list(fits)

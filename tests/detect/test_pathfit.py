@@ -69,9 +69,9 @@ def test_model_derivatives_match_finite_differences(model):
     assert np.max(np.abs(df - num_f)) < 1e-6 * np.max(np.abs(df))
     # Onset derivative: the model's d/du column against a finite difference of the fit.
     x = _received(q, [100.3], [1.0], n=model.segment)
-    st = _evaluate(x, model, np.array([100.3]), math.log(q), f0, True)
-    st2 = _evaluate(x, model, np.array([100.3 + 1e-4]), math.log(q), f0, True)
-    st1 = _evaluate(x, model, np.array([100.3 - 1e-4]), math.log(q), f0, True)
+    st = _evaluate(x, model, np.array([100.3]), np.array([math.log(q), f0]), True)
+    st2 = _evaluate(x, model, np.array([100.3 + 1e-4]), np.array([math.log(q), f0]), True)
+    st1 = _evaluate(x, model, np.array([100.3 - 1e-4]), np.array([math.log(q), f0]), True)
     fd = (st2.basis - st1.basis) / 2e-4 @ st.a
     assert np.max(np.abs(st.jac[:, 0] - fd)) < 1e-5 * np.max(np.abs(fd))
 
