@@ -210,13 +210,15 @@ def make_burst(kw: dict, *, scheme: str):
 
 
 def detector_option(f):
-    """--detector changepoint|xcorr."""
+    """--detector changepoint|xcorr|template (rangekit.detect.DETECTORS, tested equal)."""
     return click.option(
         "--detector",
-        type=click.Choice(["changepoint", "xcorr"]),
+        type=click.Choice(["changepoint", "xcorr", "template"]),
         default="changepoint",
         show_default=True,
-        help="Arrival detector: STFT change point + edge fit, or the cross-correlation baseline.",
+        help="Arrival detector for the beep: STFT change point + edge fit, the whole-beep "
+        "cross-correlation baseline, or template (the matched filter --template uses, with "
+        "the beep as the template).",
     )(f)
 
 

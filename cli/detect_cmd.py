@@ -26,9 +26,8 @@ _BEEP_OPTIONS = {
 }
 
 
-#: Options that only apply with --template, by parameter name.
+#: Options that only apply to the matched filter (--template or --detector template).
 _TEMPLATE_OPTIONS = {
-    "expected": "--expected",
     "min_separation": "--min-separation",
     "weighting": "--weighting",
 }
@@ -43,8 +42,8 @@ _TEMPLATE_OPTIONS = {
     type=click.IntRange(min=1),
     default=None,
     metavar="N",
-    help="With --template: the number of emissions in each channel (e.g. 2 for a two-way "
-    "exchange); exactly N arrivals, the ones `range` uses.",
+    help="The number of emissions in each channel (e.g. 2 for a two-way exchange): at most "
+    "N arrivals, the best supported; the ones `range` uses.",
 )
 @click.option(
     "--min-separation",
@@ -52,14 +51,14 @@ _TEMPLATE_OPTIONS = {
     type=click.FloatRange(min=0.0, min_open=True),
     default=None,
     metavar="S",
-    help="With --template: shortest time between two emissions in seconds (e.g. the firing "
+    help="Matched filter only: shortest time between two emissions in seconds (e.g. the firing "
     "period); peaks closer to a stronger arrival are its echoes [the probe's duration].",
 )
 @click.option(
     "--weighting",
     type=click.Choice(["ml", "prewhiten", "scot", "phat", "none"]),
     default=None,
-    help="With --template: weighting of the matched filter by the recording's noise spectrum [ml].",
+    help="Matched filter only: weighting by the recording's noise spectrum [ml].",
 )
 @beep_options
 @format_option
@@ -70,16 +69,18 @@ def detect_cmd(files, detector, template, expected, min_separation, weighting, f
     """Beep onsets (or --template probe onsets) in every channel of every FILE.
 
     Prints one row per beep found: file, channel, beep index, onset (float sample index
-    from sample 0, and seconds), its 1-sigma in samples, SNR and confidence (fraction of
-    bursts whose timing fits the burst spacing). Exit code 6 if a channel holds no beep.
+    from sample 0, and seconds), its 1-sigma in samples, SNR, confidence (fraction of
+    bursts whose timing fits the burst spacing) and flags (clipped, low_snr,
+    ambiguous_first_path, inconsistent_bursts, poor_match, reverb_limited, dc_or_lowband;
+    '-' for none). Exit code 6 if a channel holds no beep.
 
-    With --template the rows are the arrivals of that probe (first path of each,
-    strongest arrivals at least the probe's length or --min-separation apart, peaks in an
-    arrival's reverberation or ringing belong to it; confidence is the first path's
-    height over the arrival's strongest peak) and the detector is 'template'; with
-    --expected N exactly N per channel, the same arrivals `range` uses. JSON rows also
-    carry each arrival's flags (clipped, low_snr, ambiguous_first_path, poor_match,
-    reverb_limited, dc_or_lowband).
+    With --template (or --detector template: the beep as the template) the rows are the
+    arrivals of that probe by matched filtering (first path of each, strongest arrivals
+    at least the probe's length or --min-separation apart, peaks in an arrival's
+    reverberation or ringing belong to it; confidence is the first path's height over
+    the arrival's strongest peak). With --expected N at most N per channel, the same
+    arrivals `range` uses: every command detects through one function
+    (rangekit.detect.detect).
 
     \b
     Examples:
@@ -89,7 +90,6 @@ def detect_cmd(files, detector, template, expected, min_separation, weighting, f
       rangekit detect --template tone.wav --min-separation 0.5 log64k.wav
     """
     from rangekit.detect import detect
-    from rangekit.detect.template import detect_template
     from rangekit.io.audio import read_audio
     from rangekit.io.results import arrivals_rows, format_arrivals
 
@@ -102,35 +102,34 @@ def detect_cmd(files, detector, template, expected, min_separation, weighting, f
         for key, opt in _BEEP_OPTIONS.items():
             if beep_kw.get(key) is not None:
                 raise click.UsageError(f"{opt} describes the built-in beep; drop it or --template")
-    if template is None:
-        extra = {"expected": expected, "min_separation": min_separation, "weighting": weighting}
+    method = "template" if template is not None else detector
+    if method != "template":
+        extra = {"min_separation": min_separation, "weighting": weighting}
         for key, opt in _TEMPLATE_OPTIONS.items():
             if extra[key] is not None:
-                raise click.UsageError(f"{opt} applies to --template only")
+                raise click.UsageError(
+                    f"{opt} applies to the matched filter only (--template or --detector template)"
+                )
     probe = load_template(template)
-    tkw = {"expected": expected, "min_separation_s": min_separation}
+    signal = probe if probe is not None else make_beep(beep_kw)
+    kw = {"min_separation_s": min_separation} if min_separation is not None else {}
     if weighting is not None:
-        tkw["weighting"] = weighting
-    beep = None if probe is not None else make_beep(beep_kw)
+        kw["weighting"] = weighting
     rows, empty = [], []
     for f in files:
         x, fs = read_audio(f)
         for ch in range(x.shape[1]):
-            if probe is None:
-                arr = detect(x[:, ch], fs=fs, beep=beep, detector=detector)
-            else:
-                arr = detect_template(x[:, ch], fs=fs, probe=probe, what=f"'{f}'", **tkw)
+            what = f"'{f}'"
+            arr = detect(
+                x[:, ch], fs=fs, signal=signal, method=method, expected=expected, what=what, **kw
+            )
             if len(arr) == 0:
                 empty.append(f"{f}#{ch}")
-            new = arrivals_rows(arr, file=str(f), channel=ch)
-            if probe is not None and fmt == "json":
-                for i, r in enumerate(new):
-                    r["flags"] = list(arr.flag_names(i))
-            rows += new
-    meta = (
-        {"detector": detector} if probe is None else {"detector": "template", "template": template}
-    )
-    if probe is not None and expected is not None:
+            rows += arrivals_rows(arr, file=str(f), channel=ch)
+    meta = {"detector": method}
+    if probe is not None:
+        meta["template"] = template
+    if expected is not None:
         meta["expected"] = expected
     emit(format_arrivals(rows, fmt, meta=meta), output)
     if empty:

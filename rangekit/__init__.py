@@ -18,6 +18,10 @@ __version__ = "0.1.0"
 
 _LAZY = {
     "Beep": "rangekit.signals",
+    "CodedBurst": "rangekit.signals",
+    "Probe": "rangekit.signals",
+    "linear_sweep": "rangekit.signals",
+    "read_probe": "rangekit.signals",
     "beep_waveform": "rangekit.signals",
     "detect": "rangekit.detect",
     "detect_changepoint": "rangekit.detect",

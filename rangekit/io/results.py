@@ -23,6 +23,7 @@ ARRIVAL_FIELDS = (
     "sigma_samples",
     "snr_db",
     "confidence",
+    "flags",
 )
 
 
@@ -82,7 +83,12 @@ def format_ranges(result: RangeResult, fmt: str, *, meta: dict | None = None) ->
 
 
 def arrivals_rows(arr: Arrivals, *, file: str, channel: int) -> list[dict]:
-    """One dict per detected beep, with the fields of ``ARRIVAL_FIELDS``."""
+    """One dict per detected arrival, with the fields of ``ARRIVAL_FIELDS``.
+
+    ``flags`` is the list of the arrival's flag names (:data:`rangekit.types.ARRIVAL_FLAGS`);
+    :func:`format_arrivals` writes it as ranges are written: comma-joined in a table ('-' for
+    none), ';'-joined in CSV (empty for none), a list in JSON.
+    """
     return [
         {
             "file": file,
@@ -93,6 +99,7 @@ def arrivals_rows(arr: Arrivals, *, file: str, channel: int) -> list[dict]:
             "sigma_samples": float(arr.sigma[i]),
             "snr_db": float(arr.snr_db[i]),
             "confidence": float(arr.confidence[i]),
+            "flags": list(arr.flag_names(i)),
         }
         for i in range(len(arr))
     ]
@@ -112,6 +119,8 @@ def format_arrivals(rows: list[dict], fmt: str, *, meta: dict | None = None) -> 
             }
             for r in rows
         ]
+    if fmt == "table":
+        rows = [{**r, "flags": ",".join(r["flags"]) or "-"} for r in rows]
     if fmt == "json":
         rows = [_json_safe(r) for r in rows]
     return format_rows(rows, ARRIVAL_FIELDS, fmt, meta=meta, key="arrivals")

@@ -20,7 +20,7 @@ from rangekit.ranging.beepbeep import (
     self_distances,
 )
 from rangekit.ranging.calibration import Calibration
-from rangekit.signals.beep import Beep, check_beep_fits
+from rangekit.signals.beep import Beep
 from rangekit.signals.probe import Probe
 from rangekit.types import Arrivals, RangeResult
 
@@ -48,27 +48,37 @@ def _spacing_hint(onsets: np.ndarray, *, beep: Beep, fs: float) -> str:
 def detect_channel(
     ch: Channel,
     *,
-    beep: Beep,
+    beep: Beep | None = None,
     detector: str = "changepoint",
     expected: int | None = None,
     probe: Probe | None = None,
     spectra=None,
 ) -> Arrivals:
-    """Detect the beeps in one device's recording; explain in the error when too few are found.
+    """Detect what was played in one device's recording; explain when too few are found.
 
-    With ``probe`` the arrivals are those of that signal
-    (:func:`rangekit.detect.template.detect_template`, weighted by ``spectra`` when given;
-    ``beep`` and ``detector`` are unused).
+    Detection is :func:`rangekit.detect.detect` of ``probe`` (method ``template``) when
+    given, else of ``beep`` (default the rangekit beep) with ``detector``; ``spectra``
+    (the template method's noise weighting, shared by an exchange's devices) is passed on.
     """
-    if probe is not None:
-        return _detect_probe(ch, probe=probe, expected=expected, spectra=spectra)
-    check_beep_fits(beep, fs=ch.fs, what=f"'{ch.source}'")
-    kw = {"max_beeps": expected} if detector == "xcorr" else {"expected": expected}
-    arr = detect(ch.x, fs=ch.fs, beep=beep, detector=detector, **kw)
+    beep = Beep() if beep is None else beep
+    signal = beep if probe is None else probe
+    method = "template" if probe is not None else detector
+    kw = {"spectra": spectra} if method == "template" and spectra is not None else {}
+    arr = detect(
+        ch.x, fs=ch.fs, signal=signal, method=method, expected=expected, what=f"'{ch.source}'", **kw
+    )
     if expected is not None and len(arr) < expected:
-        # Only on failure: the individual bursts tell whether their spacing is the problem.
-        cand = find_bursts(ch.x, fs=ch.fs, beep=beep)
-        hint = _spacing_hint(cand.onset, beep=beep, fs=ch.fs)
+        if probe is not None:
+            found = "no arrival" if len(arr) == 0 else f"{len(arr)} arrival(s)"
+            raise DetectionError(
+                f"'{ch.source}': found {found} of probe '{probe.name}' but expected "
+                f"{expected} (one per device); check that this is the probe that was played"
+            )
+        hint = ""
+        if method != "template":
+            # Only on failure: the individual bursts tell whether their spacing is the problem.
+            cand = find_bursts(ch.x, fs=ch.fs, beep=beep)
+            hint = _spacing_hint(cand.onset, beep=beep, fs=ch.fs)
         found = "no beep" if len(arr) == 0 else f"{len(arr)} beep(s)"
         raise DetectionError(
             f"'{ch.source}': found {found} but expected {expected} (one per device){hint}"
@@ -77,21 +87,6 @@ def detect_channel(
         raise DetectionError(
             f"'{ch.source}': found {len(arr)} beeps but expected {expected} (one per device); "
             "is this one exchange? run `rangekit detect` on the file to see them"
-        )
-    return arr
-
-
-def _detect_probe(ch: Channel, *, probe: Probe, expected: int | None, spectra=None) -> Arrivals:
-    from rangekit.detect.template import detect_template
-
-    arr = detect_template(
-        ch.x, fs=ch.fs, probe=probe, expected=expected, spectra=spectra, what=f"'{ch.source}'"
-    )
-    if expected is not None and len(arr) < expected:
-        found = "no arrival" if len(arr) == 0 else f"{len(arr)} arrival(s)"
-        raise DetectionError(
-            f"'{ch.source}': found {found} of probe '{probe.name}' but expected {expected} "
-            "(one per device); check that this is the probe that was played"
         )
     return arr
 
@@ -116,8 +111,8 @@ def range_channels(
         One recording per device, in play order.
     beep : Beep, optional
         The beep that was played (default: the rangekit beep).
-    detector : {"changepoint", "xcorr"}
-        Arrival detector.
+    detector : {"changepoint", "xcorr", "template"}
+        Arrival detection method for the beep (:data:`rangekit.detect.METHODS`).
     temp_c : float
         Air temperature in degrees Celsius (sets the speed of sound).
     speed_m_s : float, optional
@@ -151,7 +146,8 @@ def range_channels(
                 "give self_distance_m or a calibration, not both: the calibration's offset "
                 "already holds the speaker-to-microphone distances"
             )
-    spectra = _common_spectra(channels, probe) if probe is not None else None
+    template = probe if probe is not None else (beep if detector == "template" else None)
+    spectra = _common_spectra(channels, template.as_probe()) if template is not None else None
     for ch in channels:
         try:
             arrivals.append(

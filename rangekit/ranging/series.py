@@ -57,7 +57,6 @@ import numpy as np
 
 from rangekit import _validate as V
 from rangekit.detect import DETECTORS, detect
-from rangekit.detect.template import detect_template
 from rangekit.errors import DetectionError, IncompatibleInputError, InvalidParameterError
 from rangekit.physics import DEFAULT_TEMP_C, speed_of_sound_m_s
 from rangekit.ranging.beepbeep import (
@@ -421,7 +420,8 @@ def _beepbeep_series(
     from rangekit.io.audio import read_frames
 
     sources = _open_sources(paths, beep, probe)
-    signal = beep if probe is None else probe  # what was played: its duration
+    signal = beep if probe is None else probe  # what was played
+    method = detector if probe is None else "template"
     try:
         n = sum(len(s.devices) for s in sources)
         self_distances(self_distance_m, n)
@@ -447,13 +447,16 @@ def _beepbeep_series(
                     names[dev] = _device_name(s, col)
                     if len(x) == 0:
                         arrivals[dev] = Arrivals.empty(
-                            fs=s.fs, n_bursts=1 if probe else beep.n_bursts
+                            fs=s.fs, n_bursts=1 if method == "template" else beep.n_bursts
                         )
                         continue
-                    if probe is None:
-                        a = detect(x[:, col], fs=s.fs, beep=beep, detector=detector)
-                    else:
-                        a = detect_template(x[:, col], fs=s.fs, probe=probe, what=f"'{names[dev]}'")
+                    a = detect(
+                        x[:, col],
+                        fs=s.fs,
+                        signal=signal,
+                        method=method,
+                        what=f"'{names[dev]}'",
+                    )
                     a = a.take(np.argsort(a.onset, kind="stable"))
                     arrivals[dev] = _shift(a, r0)
                 del x

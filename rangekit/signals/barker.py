@@ -28,11 +28,15 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING, ClassVar
 
 import numpy as np
 
 from rangekit import _validate as V
 from rangekit.errors import IncompatibleInputError, InvalidParameterError
+
+if TYPE_CHECKING:
+    from rangekit.signals.probe import Probe
 
 __all__ = [
     "BARKER_CODES",
@@ -88,6 +92,9 @@ class CodedBurst:
     cycles_per_bit: int = 3
     amplitude: float = 0.9
     fs: float = DEFAULT_FS
+
+    #: What kind of emitted signal this is (:data:`rangekit.signals.SIGNAL_KINDS`).
+    kind: ClassVar[str] = "coded"
 
     def __post_init__(self) -> None:
         try:
@@ -145,6 +152,36 @@ class CodedBurst:
     def with_fs(self, fs: float) -> CodedBurst:
         """The same burst sampled at another rate (validated)."""
         return CodedBurst(self.code, self.carrier_hz, self.cycles_per_bit, self.amplitude, fs)
+
+    # The emitted-signal interface shared with Beep and Probe (rangekit.signals).
+    def band(self) -> tuple[float, float]:
+        """``(lo, hi)`` in Hz: the main lobe, :attr:`band_hz`."""
+        return self.band_hz
+
+    def check_fits(self, fs: float, *, what: str = "recording") -> None:
+        """Raise IncompatibleInputError if a ``fs`` Hz recording cannot carry the burst."""
+        check_burst_fits(self, fs=fs, what=what)
+
+    def as_probe(self) -> Probe:
+        """The drive as a :class:`~rangekit.signals.probe.Probe` (its samples at ``fs``).
+
+        This is the drive, not what a microphone receives: the transducers' responses
+        (:mod:`rangekit.signals.transducer`) are not in it.
+        """
+        from rangekit.signals.probe import Probe
+
+        return Probe(burst_waveform(self), self.fs, name="coded burst")
+
+    def samples_at(self, fs: float, *, what: str = "recording") -> np.ndarray:
+        """The drive sampled at ``fs`` (sampled anew from the continuous waveform).
+
+        Examples
+        --------
+        >>> len(CodedBurst().samples_at(192000.0)), len(CodedBurst().samples_at(384000.0))
+        (101, 202)
+        """
+        self.check_fits(fs, what=what)
+        return burst_waveform(self.with_fs(fs))
 
 
 def srf02_ping(*, fs: float = DEFAULT_FS, amplitude: float = 0.9) -> CodedBurst:

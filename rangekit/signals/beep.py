@@ -22,11 +22,15 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING, ClassVar
 
 import numpy as np
 
 from rangekit import _validate as V
 from rangekit.errors import IncompatibleInputError, InvalidParameterError
+
+if TYPE_CHECKING:
+    from rangekit.signals.probe import Probe
 
 __all__ = [
     "Beep",
@@ -72,6 +76,9 @@ class Beep:
     taper: int = DEFAULT_TAPER
     amplitude: float = 0.9
     fs: float = 44100.0
+
+    #: What kind of emitted signal this is (:data:`rangekit.signals.SIGNAL_KINDS`).
+    kind: ClassVar[str] = "beep"
 
     def __post_init__(self) -> None:
         fs = V.sample_rate(self.fs)
@@ -138,6 +145,40 @@ class Beep:
     def duration_s(self) -> float:
         """Beep duration in seconds."""
         return self.duration_samples / self.fs
+
+    # The emitted-signal interface shared with CodedBurst and Probe (rangekit.signals).
+    def band(self) -> tuple[float, float]:
+        """``(lo, hi)`` in Hz: the tone -+ the tapered edges' bandwidth.
+
+        Examples
+        --------
+        >>> [round(f) for f in Beep().band()]
+        [13995, 18005]
+        """
+        return (self.f_hz - self.edge_bandwidth_hz, self.f_hz + self.edge_bandwidth_hz)
+
+    def check_fits(self, fs: float, *, what: str = "recording") -> None:
+        """Raise IncompatibleInputError if a ``fs`` Hz recording cannot carry the beep."""
+        check_beep_fits(self, fs=fs, what=what)
+
+    def as_probe(self) -> Probe:
+        """The beep as a :class:`~rangekit.signals.probe.Probe` (its samples at ``fs``)."""
+        from rangekit.signals.probe import Probe
+
+        return Probe(beep_waveform(self), self.fs, name="beep")
+
+    def samples_at(self, fs: float, *, what: str = "the recording") -> np.ndarray:
+        """The beep as played, sampled at ``fs`` (resampled when ``fs != self.fs``).
+
+        Examples
+        --------
+        >>> len(Beep().samples_at(44100.0)), len(Beep().samples_at(48000.0))
+        (15441, 16807)
+        """
+        if float(fs) == self.fs:
+            self.check_fits(fs, what=what)
+            return beep_waveform(self)
+        return self.as_probe().at_rate(fs, what=what)
 
 
 def burst_envelope(t_s: np.ndarray, *, beep: Beep) -> np.ndarray:

@@ -35,6 +35,7 @@ import math
 import os
 from dataclasses import dataclass
 from fractions import Fraction
+from typing import ClassVar
 
 import numpy as np
 
@@ -68,6 +69,9 @@ class Probe:
     samples: np.ndarray
     fs: float
     name: str = "probe"
+
+    #: What kind of emitted signal this is (:data:`rangekit.signals.SIGNAL_KINDS`).
+    kind: ClassVar[str] = "probe"
 
     def __post_init__(self) -> None:
         x = V.signal_1d("probe samples", self.samples)
@@ -139,6 +143,19 @@ class Probe:
                 f"above the Nyquist frequency {0.5 * fs / 1e3:.2f} kHz of {what} "
                 f"(sampled at {fs:g} Hz); record at a higher rate or use a lower-band probe"
             )
+
+    # The emitted-signal interface shared with Beep and CodedBurst (rangekit.signals).
+    def band(self) -> tuple[float, float]:
+        """``(lo, hi)`` in Hz: :meth:`band_hz` (99.9 % of the energy)."""
+        return self.band_hz()
+
+    def as_probe(self) -> Probe:
+        """The probe itself."""
+        return self
+
+    def samples_at(self, fs: float, *, what: str = "the recording") -> np.ndarray:
+        """The probe sampled at ``fs``: :meth:`at_rate`."""
+        return self.at_rate(fs, what=what)
 
     def at_rate(self, fs: float, *, what: str = "the recording") -> np.ndarray:
         """The probe as samples at ``fs`` (the matched-filter template of a recording).

@@ -62,7 +62,7 @@ def test_detect_template_mono_files_and_csv(tmp_path, sweep_file):
     rows = list(csv.DictReader(io.StringIO(r.stdout)))
     assert list(rows[0]) == [
         "file", "channel", "beep", "onset_sample", "onset_s", "sigma_samples", "snr_db",
-        "confidence",
+        "confidence", "flags",
     ]  # fmt: skip
     assert [(row["file"], row["beep"]) for row in rows] == [
         (str(files[0]), "0"), (str(files[0]), "1"), (str(files[1]), "0"), (str(files[1]), "1"),
@@ -164,8 +164,14 @@ def test_detect_template_min_separation_groups_echoes(tmp_path, sweep_file):
     assert onsets("--min-separation", 0.3) == [3000, 17000]
 
 
-@pytest.mark.parametrize("extra", [["--expected", "2"], ["--min-separation", "0.5"]])
+@pytest.mark.parametrize(
+    "extra", [["--min-separation", "0.5"], ["--weighting", "ml"], ["--detector", "xcorr"]]
+)
 def test_detect_template_options_need_template(tmp_path, extra):
+    """Matched-filter options need the matched filter; --detector needs the beep."""
     rec = tmp_path / "rec.wav"
     write_audio(rec, np.zeros(1000), fs=44100.0)
-    assert_error(run(["detect", *extra, rec]), 2, extra[0], "--template")
+    if extra[0] == "--detector":
+        assert_error(run(["detect", *extra, "--template", rec, rec]), 2, "--detector", "--template")
+    else:
+        assert_error(run(["detect", *extra, rec]), 2, extra[0], "--template")

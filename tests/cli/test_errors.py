@@ -254,7 +254,7 @@ def test_detect_silent_file_exits_6_with_header(tmp_path):
         assert len(header) == 1
         assert header[0].replace(",", " ").split() == [
             "file", "channel", "beep", "onset_sample", "onset_s", "sigma_samples", "snr_db",
-            "confidence",
+            "confidence", "flags",
         ]  # fmt: skip
 
 
