@@ -99,9 +99,11 @@ calibration_option = click.option(
 @click.option(
     "--strict",
     is_flag=True,
-    help="Refuse (exit 10, nothing written) when a range carries a flag that makes it "
-    "doubtful (clipped, low_snr, ambiguous_first_path, inconsistent_bursts, poor_match, "
-    "reverb_limited, negative, order); beepbeep without --series.",
+    help="Never print a doubtful distance: a range flagged clipped, low_snr, "
+    "ambiguous_first_path, inconsistent_bursts, poor_match, reverb_limited, negative or "
+    "order is refused (exit 10). One beepbeep exchange: nothing is written. --series and "
+    "oneway/echo rows: every row is written, doubtful ones with an empty distance and the "
+    "flag 'withheld', then exit 10.",
 )
 @format_option
 @output_option
@@ -164,8 +166,6 @@ def range_cmd(
         for opt, v in only:
             if v is not None:
                 raise click.UsageError(f"{opt} applies to --series with --scheme beepbeep only")
-    if strict and (series or scheme != "beepbeep"):
-        raise click.UsageError("--strict applies to --scheme beepbeep without --series")
     series_opts = {"block_s": block_s} if series else None
     from rangekit_cli._options import load_template
 
@@ -185,7 +185,9 @@ def range_cmd(
         )
     if scheme != "beepbeep":
         extra = {"probe": probe, "calibration": cal}
-        _range_ultrasonic(files, scheme, temp_c, speed, fmt, output, kw, series_opts, extra)
+        _range_ultrasonic(
+            files, scheme, temp_c, speed, fmt, output, kw, series_opts, extra, strict=strict
+        )
         return
     from rangekit.io.results import format_ranges
     from rangekit.ranging import range_files
@@ -199,7 +201,7 @@ def range_cmd(
         from rangekit.physics import speed_of_sound_m_s
         from rangekit.ranging.series import DEFAULT_SKEW_S, range_series_beepbeep
 
-        sink = SeriesSink("beepbeep", fmt, output)
+        sink = SeriesSink("beepbeep", fmt, output, strict=strict)
         items = range_series_beepbeep(
             files,
             beep=beep,
@@ -336,7 +338,7 @@ def _read_calibration(path, scheme: str):
     return cal
 
 
-def _range_ultrasonic(files, scheme, temp_c, speed, fmt, output, kw, series_opts, extra):
+def _range_ultrasonic(files, scheme, temp_c, speed, fmt, output, kw, series_opts, extra, *, strict):
     from rangekit.ranging.ultrasonic import format_tof, range_ultrasonic_files
 
     any_channels = extra["probe"] is not None and kw.get("channels") is None
@@ -352,7 +354,7 @@ def _range_ultrasonic(files, scheme, temp_c, speed, fmt, output, kw, series_opts
             raise click.UsageError(f"--series --scheme {scheme} takes one FILE, got {len(files)}")
         if args["period_s"] is None:
             raise click.UsageError(f"--series --scheme {scheme} needs --period")
-        sink = SeriesSink(scheme, fmt, output)
+        sink = SeriesSink(scheme, fmt, output, strict=strict)
         items = range_series_ultrasonic(
             files[0],
             scheme=scheme,
@@ -370,7 +372,34 @@ def _range_ultrasonic(files, scheme, temp_c, speed, fmt, output, kw, series_opts
     meta = {"scheme": scheme, "files": [str(f) for f in files]}
     if extra["probe"] is not None:
         meta["template"] = extra["probe"].name
+    withheld = _withhold(rows) if strict else []
     emit(format_tof(rows, fmt, scheme=scheme, meta=meta), output)
+    _report_withheld(withheld, len(rows), files)
+
+
+def _withhold(rows: list[dict]) -> list[dict]:
+    """--strict on output rows: empty the doubtful ones' distances; return those rows."""
+    from rangekit.ranging.beepbeep import withhold_doubtful
+
+    return [r for r in rows if withhold_doubtful(r)]
+
+
+def _report_withheld(withheld: list[dict], n_rows: int, files) -> None:
+    """--strict: exit 10 naming the inputs, how many rows were withheld and the first one."""
+    if not withheld:
+        return
+    from rangekit.errors import UnreliableResultError
+
+    r = withheld[0]
+    where = ", ".join(
+        f"{k} {r[k]}" for k in ("t_s", "a", "b", "window", "tx", "channel") if r.get(k) is not None
+    )
+    flags = ",".join(f for f in r["flags"] if f != "withheld")
+    raise UnreliableResultError(
+        f"strict: {', '.join(str(f) for f in files)}: {len(withheld)} of {n_rows} ranges "
+        f"withheld as doubtful (written with an empty distance, flag 'withheld'); first: "
+        f"{where} flagged {flags}"
+    )
 
 
 #: Exit code of ``--series`` when stdout is closed early by its reader (128 + SIGPIPE).
@@ -388,10 +417,11 @@ class SeriesSink:
     exchanges (beepbeep) or rows (oneway/echo) without a detection.
     """
 
-    def __init__(self, scheme: str, fmt: str, output: str | None) -> None:
+    def __init__(self, scheme: str, fmt: str, output: str | None, *, strict: bool = False) -> None:
         from rangekit.ranging.series import SERIES_FIELDS
 
         self.scheme = scheme
+        self.strict = strict
         self.fmt = fmt
         self.output = output
         self.fields = SERIES_FIELDS[scheme]
@@ -480,6 +510,7 @@ class SeriesSink:
         from rangekit.io.results import format_rows
 
         collected: list[dict] = []
+        withheld: list[dict] = []
         n_items = n_bad = n_rows = 0
         first_error = None
         ok = False
@@ -497,6 +528,8 @@ class SeriesSink:
                     rows = item.rows(scheme=self.scheme)
                     n_bad += sum(r["distance_m"] is None for r in rows)
                 n_rows += len(rows)
+                if self.strict:
+                    withheld += _withhold(rows)
                 if self.fmt == "csv":
                     self._csv(rows)
                 else:
@@ -531,3 +564,4 @@ class SeriesSink:
                 "(empty distance: nothing in range)",
                 err=True,
             )
+        _report_withheld(withheld, n_rows, meta["files"])

@@ -42,8 +42,10 @@ __all__ = [
     "check_speed",
     "doubtful_flags",
     "range_beepbeep",
+    "WITHHELD",
     "refuse_doubtful",
     "self_distances",
+    "withhold_doubtful",
 ]
 
 #: Default 1-sigma sample-clock tolerance of a device, ppm.
@@ -150,9 +152,39 @@ def range_beepbeep(
     return RangeResult(tuple(ranges), c, tuple(arrivals))
 
 
-def doubtful_flags(r: Range) -> tuple[str, ...]:
-    """The flags of ``r`` that make it doubtful (all but :data:`rangekit.types.INFO_FLAGS`)."""
-    return tuple(f for f in r.flags if f not in INFO_FLAGS)
+#: The flag strict mode adds to an output row whose distance it withholds.
+WITHHELD = "withheld"
+
+
+def doubtful_flags(r) -> tuple[str, ...]:
+    """The flags of ``r`` (a Range, a ToF, anything with ``flags``) that make it doubtful:
+    all but :data:`rangekit.types.INFO_FLAGS`."""
+    return tuple(f for f in r.flags if f not in INFO_FLAGS and f != WITHHELD)
+
+
+def withhold_doubtful(row: dict) -> bool:
+    """Strict mode for one output row of a multi-row result (``--series``, one-way and
+    echo rows, batch): a row with a distance and a doubtful flag keeps its flags, gains
+    :data:`WITHHELD`, and its ``distance_m`` and ``sigma_m`` become None. Returns whether
+    the row was withheld. (A one-exchange result is refused whole instead:
+    :func:`refuse_doubtful`.)
+
+    Examples
+    --------
+    >>> row = {"distance_m": 2.0, "sigma_m": 0.01, "flags": ["low_snr"]}
+    >>> withhold_doubtful(row), row
+    (True, {'distance_m': None, 'sigma_m': None, 'flags': ['low_snr', 'withheld']})
+    >>> withhold_doubtful({"distance_m": 2.0, "sigma_m": 0.01, "flags": ["dc_or_lowband"]})
+    False
+    """
+    d = row.get("distance_m")
+    flags = list(row.get("flags") or ())
+    if d is None or not math.isfinite(d) or WITHHELD in flags:
+        return False
+    if not any(f not in INFO_FLAGS for f in flags):
+        return False
+    row.update(distance_m=None, sigma_m=None, flags=[*flags, WITHHELD])
+    return True
 
 
 def refuse_doubtful(result: RangeResult, *, what: str = "the recording") -> RangeResult:

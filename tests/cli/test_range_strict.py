@@ -2,9 +2,12 @@
 
 from __future__ import annotations
 
+import csv
 import json
 from pathlib import Path
 
+import numpy as np
+import soundfile as sf
 from clihelp import assert_error, ok, run
 
 
@@ -36,10 +39,63 @@ def test_clean_exchange_passes_strict_mode(tmp_path):
     assert r["flags"] == [] and abs(r["distance_m"] - 2.0) < 0.01
 
 
-def test_strict_is_beepbeep_only(tmp_path):
-    wav = _synth(tmp_path, "x")
-    assert_error(run(["range", wav, "--strict", "--series"]), 2, "--strict")
-    assert_error(run(["range", wav, "--strict", "--scheme", "echo"]), 2, "--strict")
+def _series(tmp_path) -> Path:
+    """Two exchanges 3 s apart in one stereo file: a clean one, then a clipped one.
+
+    Each is scaled to full scale per channel, as one device's converter would record both
+    (its rails are the same all through the file)."""
+    parts = []
+    for name, extra in (("a", ()), ("b", ("--impair", "clip_db=15"))):
+        x, fs = sf.read(_synth(tmp_path, name, *extra), always_2d=True)
+        x = x / np.abs(x).max(axis=0)
+        parts.append(np.pad(x, ((0, int(3 * fs) - len(x)), (0, 0))))
+    out = tmp_path / "series.wav"
+    sf.write(out, np.concatenate(parts), int(fs), subtype="FLOAT")
+    return out
+
+
+def _check_withheld(plain: list[dict], strict: list[dict]) -> int:
+    """Strict rows = plain rows, except doubtful ones: empty distance, flag 'withheld'."""
+    assert len(plain) == len(strict) > 0
+    n = 0
+    for p, s in zip(plain, strict, strict=True):
+        doubtful = p["distance_m"] is not None and set(p["flags"]) - {"dc_or_lowband"}
+        if doubtful:
+            n += 1
+            assert s["distance_m"] is None and s["sigma_m"] is None, s
+            assert s["flags"] == [*p["flags"], "withheld"]
+        else:
+            assert s == p
+    return n
+
+
+def test_series_strict_withholds_the_doubtful_exchange(tmp_path):
+    wav = _series(tmp_path)
+    args = ["range", "--series", wav, "--self-distance", 0.1]
+    plain = json.loads(ok(run([*args, "--format", "json"])).output)["ranges"]
+    assert [round(r["distance_m"], 1) for r in plain] == [2.0, 2.0]
+    assert plain[0]["flags"] == [] and "clipped" in plain[1]["flags"]
+    out = tmp_path / "s.csv"
+    msg = assert_error(run([*args, "--strict", "--format", "csv", "-o", out]), 10, "series.wav")
+    assert "1 of 2 ranges withheld" in msg and "clipped" in msg
+    rows = list(csv.DictReader(out.open()))  # every row written, the doubtful one emptied
+    assert [r["distance_m"] != "" for r in rows] == [True, False]
+    assert rows[1]["flags"].split(";")[-1] == "withheld"
+    res = run([*args, "--strict", "--format", "json"])
+    assert res.exit_code == 10
+    assert _check_withheld(plain, json.loads(res.stdout)["ranges"]) == 1
+
+
+def test_oneway_strict_withholds_flagged_rows(tmp_path):
+    """A one-way recording at 8 dB: the low_snr rows are withheld, the others kept."""
+    wav = tmp_path / "ow.wav"
+    ok(run(["synth", "oneway", "--seed", 1, "--snr-db", 8, "-o", wav]))
+    args = ["range", "--scheme", "oneway", wav, "--period", 0.2, "--format", "json"]
+    plain = json.loads(ok(run(args)).output)["ranges"]
+    res = run([*args, "--strict"])
+    msg = assert_error(res, 10, "ow.wav", "withheld")
+    n = _check_withheld(plain, json.loads(res.stdout)["ranges"])
+    assert 0 < n < len(plain) and f"{n} of {len(plain)} ranges" in msg
 
 
 ROOM = Path(__file__).resolve().parents[2] / "fixtures_audio" / "beepbeep_room_4p2m.wav"
