@@ -395,6 +395,8 @@ class PathFit:
         Parameters the fit estimated (3 per path, ``theta`` unless held).
     q_of : callable, optional
         Map from ``theta`` to ``(Q, f0)`` (default the resonator's ``(exp, id)``).
+    n0 : int
+        First sample of the fitted segment in the recording (-1 if unknown).
     """
 
     onset: float
@@ -418,6 +420,7 @@ class PathFit:
     chi2: float = math.nan
     n_par: int = 0
     q_of: object = None
+    n0: int = -1
 
     @property
     def n_paths(self) -> int:
@@ -904,6 +907,7 @@ def _summarize(st, seg, n0, model, sigma, k_noise, rel_threshold, lo, hi, free=T
         chi2=float(st.cost / sigma**2),
         n_par=n_par,
         q_of=model.q_f0,
+        n0=int(n0),
     )
     return fit.at(theta_hat, cov_t, pooled=False)
 

@@ -199,19 +199,19 @@ def _ranges(
         k = first_window + np.arange(len(windows))
         groups = np.asarray(tx_ids, dtype=np.int64)[k % len(tx_ids)]
     for ch in range(x.shape[0]):
-        arr = detect_matched(
-            x[ch],
-            fs=fs,
-            template=template,
-            windows=windows,
-            search=(lo, hi),
-            block=block,
-            model=model,
-            q0=q0,
-            groups=groups,
-            pool=pool,
-            **thresholds,
-        )
+        if model is None:
+            arr = detect_matched(
+                x[ch], fs=fs, template=template, windows=windows, search=(lo, hi),
+                block=block, **thresholds,
+            )  # fmt: skip
+        else:
+            from rangekit.detect.fitted import detect_fitted
+
+            arr = detect_fitted(
+                x[ch], fs=fs, template=template, models=model, windows=windows,
+                search=(lo, hi), block=block, q0=q0, groups=groups, pool=pool,
+                **thresholds,
+            )  # fmt: skip
         found = dict(zip(arr.window.tolist(), range(len(arr)), strict=True))
         for w, (s0, _) in enumerate(windows):
             k = first_window + w
@@ -394,16 +394,19 @@ def range_oneway(
     )
 
 
-def _fit_model(burst: CodedBurst, fs: float, transducers, fit: bool):
-    """The transducer fit's model and starting Q for ``transducers``, or ``(None, 4)``."""
+def _fit_model(burst: CodedBurst, fs: float, transducers, fit: bool, stagger: bool = True):
+    """The transducer fit's models and starting Q for ``transducers``, or ``(None, 4)``."""
     ts = [t for t in transducers if t is not None]
     if not fit or not ts:
         return None, 4.0
     from rangekit.detect.pathfit import ResonatorModel
+    from rangekit.detect.stagger import StaggerModel
 
     f0 = sum(t.f0_hz for t in ts) / len(ts)
     q0 = math.exp(sum(math.log(t.q) for t in ts) / len(ts))
-    return ResonatorModel.for_burst(burst, fs=fs, f0_hz=f0, stages=len(ts)), q0
+    kw = {"fs": fs, "f0_hz": f0, "stages": len(ts)}
+    models = (ResonatorModel.for_burst(burst, **kw), StaggerModel.for_burst(burst, **kw))
+    return (models if stagger else models[:1]), q0
 
 
 def range_echo(

@@ -1,0 +1,365 @@
+"""Arrivals timed by a transducer fit whose model is chosen from the recording.
+
+:func:`rangekit.detect.matched.detect_matched` with ``model=`` fits every arrival with
+one transducer model (two equal resonators, :class:`rangekit.detect.pathfit.
+ResonatorModel`). A transducer of another shape then comes back as a bias that its sigma
+does not show (``docs/theory/ultrasonic.md``, "What the model does not hold").
+:func:`detect_fitted` fits the first arrivals of each transducer group with two nested
+descriptions, one resonator per element and two stagger-tuned resonators per element
+(:class:`rangekit.detect.stagger.StaggerModel`), and keeps the one the data favour.
+
+**Choice.** Per group (one Tx and one receiver) the first ``N_TEST`` arrivals above the
+low-SNR level are fitted with both models on the same segment. Each gives
+``chi2 + K_ADD^2 n_paths`` (every path must buy ``K_ADD^2`` noise variances to be added,
+so a path the resonator needs only to mimic the stagger's shape counts against it), and
+the difference ``D_w`` between them is summed. Schwarz's criterion (BIC) for the stagger
+model's two further transducer parameters, shared by the group, gives the log Bayes
+factor ``L = (sum D_w - 2 n_free) / 2 - ln N`` (``n_free`` the pairs of free fits, whose
+two extra parameters each lower the stagger's chi-square by 2 on average when the
+resonator is right; ``N`` the samples fitted), and the posterior probability of the
+stagger model ``w = 1 / (1 + exp(-L))``. The model with ``w`` or ``1 - w`` above one half
+times every arrival of the group (held at its running estimate after ``N_FREE_FITS`` free
+fits, pooled as in :func:`rangekit.detect.pathfit.pool_fits`).
+
+**Sigma.** Besides the chosen model's Cramér-Rao bound (and misfit term,
+:func:`rangekit.detect.matched._fit_sigma`), each onset's variance gets the model
+uncertainty ``(1 - w_chosen) d^2``, ``d^2`` the mean square difference of the two models'
+onsets over the tested arrivals: the expected square error of reporting one model's
+onset when the other one is right with probability ``1 - w_chosen`` (Bayesian model
+averaging, Hoeting et al. 1999, *Statistical Science* 14(4), eq. 1-2).
+
+Examples
+--------
+>>> from rangekit.detect.matched import coded_template
+>>> from rangekit.detect.pathfit import ResonatorModel
+>>> from rangekit.detect.stagger import StaggerModel
+>>> from rangekit.signals.barker import CodedBurst, burst_waveform
+>>> from rangekit.signals.transducer import BandpassTransducer
+>>> fs = 192000.0
+>>> rng = np.random.default_rng(1)
+>>> t = BandpassTransducer(q=12.0)
+>>> x = np.zeros(6 * 8000)
+>>> for w in range(6):
+...     x[w * 8000 + 3000 : w * 8000 + 3101] = burst_waveform(CodedBurst(fs=fs))
+>>> x = t.apply(t.apply(x, fs=fs), fs=fs) + 0.01 * rng.standard_normal(len(x))
+>>> models = (ResonatorModel.for_burst(fs=fs), StaggerModel.for_burst(fs=fs))
+>>> arr = detect_fitted(x, fs=fs, template=coded_template(fs=fs), models=models,
+...                     windows=np.array([[w * 8000, (w + 1) * 8000] for w in range(6)]))
+>>> bool(np.all(np.abs(arr.onset - 3000 - 8000 * np.arange(6)) < 3 * arr.sigma))
+True
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+import numpy as np
+
+from rangekit import _validate as V
+from rangekit.detect import matched as M
+from rangekit.detect.pathfit import K_ADD, PathFit, fit_arrival, pool_fits
+from rangekit.errors import InvalidParameterError
+from rangekit.types import Arrivals, flag_bit
+
+__all__ = ["N_TEST", "detect_fitted"]
+
+#: Arrivals per group fitted with both transducer models before one is chosen.
+N_TEST = 3
+#: Free fits of a group (per model) before later arrivals hold the running estimate.
+N_FREE_FITS = M.N_FREE_FITS
+#: Penalty per fitted path in the model comparison, noise variances (the path-adding
+#: rule's own: a path is added only where it lowers the chi-square by ``K_ADD^2``).
+PEN_PATH = K_ADD**2
+
+
+def _fit_one(x, lag, model, sigma, acc, q0, kw, low, theta=None, start=None) -> PathFit | None:
+    """One model's fit of an arrival; updates that model's running estimate ``acc``.
+
+    ``acc`` is ``[sum info, sum info theta, n, theta_held]`` over the group's fits above
+    the low-SNR level (the scheme of ``rangekit.detect.matched._fit_window`` for any
+    number of transducer parameters).
+    """
+    p = model.n_theta
+    fit = None
+    if acc and acc[2] >= N_FREE_FITS:
+        fit = fit_arrival(x, lag, model=model, sigma=sigma, theta=acc[3], hold=True, **kw)
+        if fit is not None:
+            dev = fit.theta_hat - acc[3]
+            if float(dev @ fit.info @ dev) > 8.0 * p:
+                fit = None
+    if fit is None:
+        if theta is not None:
+            fit = fit_arrival(x, lag, model=model, sigma=sigma, theta=theta, start=start, **kw)
+        else:
+            fit = fit_arrival(x, lag, model=model, sigma=sigma, q0=q0, **kw)
+    if fit is not None and fit.snr >= low and np.linalg.det(fit.info) > 0:
+        if not acc:
+            acc.extend([np.zeros((p, p)), np.zeros(p), 0, None, []])
+        acc[0] = acc[0] + fit.info
+        acc[1] = acc[1] + fit.info @ fit.theta_hat
+        acc[2] += 1
+        acc[4].append(fit)
+        n = acc[2]
+        if n >= N_FREE_FITS and (acc[3] is None or n & (n - 1) == 0):
+            if model.family == "resonator":
+                try:
+                    acc[3] = np.linalg.solve(acc[0], acc[1])
+                except np.linalg.LinAlgError:
+                    acc[3] = fit.theta_hat
+            else:  # four parameters: a free fit gone astray must not set the estimate
+                acc[3] = _robust_theta(acc[4])
+    return fit
+
+
+def _robust_theta(fits) -> np.ndarray:
+    """Information-weighted mean ``theta`` of ``fits`` over those within 4 sigma of it
+    (iterated from the median; the median itself if fewer than two agree)."""
+    th = np.array([f.theta_hat for f in fits])
+    w = np.array([f.info for f in fits])
+    mean = np.median(th, axis=0)
+    keep = np.ones(len(th), bool)
+    for _ in range(5):
+        dev = th - mean
+        d2 = np.einsum("ni,nij,nj->n", dev, w, dev)
+        new = d2 <= 8.0 * th.shape[1]
+        if new.sum() < 2:
+            return mean
+        keep = new
+        try:
+            mean = np.linalg.solve(w[keep].sum(axis=0), np.einsum("nij,nj->i", w[keep], th[keep]))
+        except np.linalg.LinAlgError:
+            return mean
+    return mean
+
+
+def _stagger_start(fit_r: PathFit, res_model, stag_model):
+    """Starting ``theta`` and path onsets of a stagger fit from a resonator fit."""
+    from rangekit.detect.stagger import group_delay_samples
+
+    th = stag_model.theta_start(fit_r.q, fit_r.f0_hz)
+    shift = group_delay_samples(res_model, fit_r.theta_lin) - group_delay_samples(stag_model, th)
+    keep = fit_r.amplitudes >= 0.25 * fit_r.amplitudes.max()
+    return th, fit_r.onsets[keep] + shift
+
+
+class _Group:
+    """Per transducer group: both models' running estimates and the model comparison."""
+
+    def __init__(self) -> None:
+        self.acc: dict[str, list] = {"resonator": [], "stagger": []}
+        self.tests: list[tuple[float, bool, float, int]] = []
+        self.family: str | None = None
+        self.w = 1.0
+
+    def decide(self) -> None:
+        if not self.tests:
+            self.family, self.w = "resonator", 1.0
+            return
+        d = np.array([t[0] for t in self.tests])
+        n_free = sum(t[1] for t in self.tests)
+        n = sum(t[3] for t in self.tests)
+        # The median window's evidence, times the windows: one window whose resonator
+        # fit stuck in a poor optimum must not decide for the group.
+        logbf = 0.5 * (len(d) * float(np.median(d)) - 2.0 * n_free) - math.log(max(n, 2))
+        w_s = 1.0 / (1.0 + math.exp(-max(min(logbf, 50.0), -50.0)))
+        self.family = "stagger" if w_s > 0.5 else "resonator"
+        self.w = w_s if self.family == "stagger" else 1.0 - w_s
+
+    @property
+    def d2(self) -> float:
+        return float(np.median([t[2] ** 2 for t in self.tests])) if self.tests else 0.0
+
+
+def detect_fitted(
+    x: np.ndarray,
+    *,
+    fs: float,
+    template: np.ndarray,
+    models: Sequence,
+    windows: np.ndarray | None = None,
+    search: tuple[int, int] | None = None,
+    k_noise: float = M.DEFAULT_K_NOISE,
+    rel_threshold: float = M.DEFAULT_REL_THRESHOLD,
+    k_detect: float = M.DEFAULT_K_DETECT,
+    block: int = M.DEFAULT_BLOCK,
+    q0: float = 4.0,
+    groups: Sequence[int] | None = None,
+    pool: bool = True,
+) -> Arrivals:
+    """First-path arrivals of one channel, timed by the transducer fit of the chosen model.
+
+    Parameters
+    ----------
+    x : ndarray
+        One channel of the recording.
+    fs : float
+        Sample rate in Hz.
+    template : ndarray
+        Matched-filter template that finds the arrivals (:func:`rangekit.detect.matched.
+        coded_template`); the fit times them.
+    models : sequence
+        ``(ResonatorModel, StaggerModel)``: the two descriptions of the transducers
+        (module doc); ``(ResonatorModel,)`` or a stagger model of None fits the
+        resonator only, as :func:`rangekit.detect.matched.detect_matched` does.
+    windows, search, k_noise, rel_threshold, k_detect, block, q0, groups, pool
+        As :func:`rangekit.detect.matched.detect_matched` (``groups``: windows with
+        equal labels went through the same transducers; the model is chosen and
+        ``theta`` pooled per group; ``pool=False``: every window on its own).
+
+    Returns
+    -------
+    Arrivals
+        As :func:`rangekit.detect.matched.detect_matched` with ``model``; ``sigma``
+        includes the model-choice term (module doc).
+    """
+    fs = V.sample_rate(fs)
+    x = V.signal_1d("x", x)
+    res_model = models[0]
+    stag_model = models[1] if len(models) > 1 else None
+    mf = M.matched_filter(template, block=block)
+    if windows is None:
+        windows = np.array([[0, len(x)]])
+    windows = np.asarray(windows, dtype=np.int64).reshape(-1, 2)
+    lo, hi = (None, None) if search is None else (int(search[0]), int(search[1]))
+    m = len(mf.self_response) // 2
+    spans = M._window_spans(windows, len(x), lo, hi, m)
+    corr = mf.correlate_spans(x, spans)
+    noise_scale = 1.0 / math.sqrt(mf.energy)
+    labels = np.zeros(len(windows), dtype=np.int64) if groups is None else np.asarray(groups)
+    if len(labels) != len(windows):
+        raise InvalidParameterError(f"groups has {len(labels)} labels for {len(windows)} windows")
+    low = M.LOW_SNR_FACTOR * k_detect
+    state: dict = {}
+    rows: list[list] = []
+    fits: list[dict] = []
+    keys: list = []
+    sigmas: list[float] = []
+    lims: list[tuple[int, int]] = []
+    early: list[bool] = []
+    for w, (s0, s1) in enumerate(windows):
+        s0, s1 = max(0, int(s0)), min(len(x), int(s1))
+        a, b = (int(v) for v in spans[w])
+        if s1 - s0 < 3 or b - a < 3:
+            continue
+        cw = corr[w]
+        l_, h_ = (0, s1 - s0) if lo is None else (lo, hi)
+        noise = M.noise_level(np.abs(cw))
+        p = M.first_path(
+            cw, lo=l_ - (a - s0), hi=h_ - (a - s0), noise=noise, k_noise=k_noise,
+            rel_threshold=rel_threshold, k_detect=k_detect, self_response=mf.self_response,
+        )  # fmt: skip
+        if p is None:
+            continue
+        sigma = M._sample_noise(x[s0 : max(s0, a + int(p.lag) - mf.n_taps)])
+        if not 0.1 * noise * noise_scale <= sigma <= 2.0 * noise * noise_scale:
+            sigma = noise * noise_scale
+        key = int(labels[w]) if pool else ("w", w)
+        g = state.setdefault(key, _Group())
+        kw = {"k_noise": k_noise, "rel_threshold": rel_threshold, "lo": s0 + l_, "hi": s0 + h_}
+        lag = a + p.lag
+        got: dict[str, PathFit | None] = {}
+        if g.family != "stagger":
+            got["resonator"] = _fit_one(x, lag, res_model, sigma, g.acc["resonator"], q0, kw, low)
+        fr = got.get("resonator")
+        if stag_model is not None and g.family is None and fr is not None:
+            th, start = _stagger_start(fr, res_model, stag_model)
+            lag_s = fr.n0 + stag_model.pre
+            fs_ = _fit_one(
+                x, lag_s, stag_model, sigma, g.acc["stagger"], q0, kw, low, theta=th, start=start
+            )
+            got["stagger"] = fs_
+            if fs_ is not None and fs_.n0 == fr.n0 and fr.snr >= low:
+                d = (fr.chi2 + PEN_PATH * fr.n_paths) - (fs_.chi2 + PEN_PATH * fs_.n_paths)
+                d = max(d, 0.0)  # the stagger nests the resonator to 1e-4: worse = stuck
+                free = fr.n_par > 3 * fr.n_paths and fs_.n_par > 3 * fs_.n_paths
+                n_seg = len(x[fr.n0 : fr.n0 + res_model.segment])
+                g.tests.append((d, free, fs_.onset - fr.onset, n_seg))
+            if len(g.tests) >= N_TEST:
+                g.decide()
+        elif g.family == "stagger":
+            got["stagger"] = _fit_one(x, lag, stag_model, sigma, g.acc["stagger"], q0, kw, low)
+        any_fit = next((f for f in got.values() if f is not None), None)
+        top = float(np.abs(cw[int(round(p.strongest_lag))]))
+        rows.append([a + p.lag, math.inf, p.snr, p.height / top, w])
+        sigmas.append(sigma)
+        lims.append((s0 + l_, s0 + h_))
+        fits.append(got)
+        keys.append(key)
+        first = (any_fit.onset if any_fit is not None else a + p.lag) - a
+        early.append(
+            M._earlier_candidate(
+                cw, lo=l_ - (a - s0), first=first, noise=noise, reach=mf.n_taps,
+                k=0.5 * (k_detect + k_noise), rel=rel_threshold,
+            )
+        )  # fmt: skip
+    for g in state.values():
+        if g.family is None:
+            g.decide()
+    chosen: list[PathFit | None] = []
+    for got, key in zip(fits, keys, strict=True):
+        fam = state[key].family
+        f = got.get(fam)
+        if f is None:  # the chosen model found nothing here: the other one's fit
+            f = next((v for v in got.values() if v is not None), None)
+        chosen.append(f)
+    if pool and stag_model is not None:
+        # Stagger groups: the free fits (four parameters each, possibly astray) are
+        # refitted holding the group's robust estimate, so every onset is a fit at it.
+        for key, g in state.items():
+            if g.family != "stagger" or len(g.acc["stagger"]) < 5 or not g.acc["stagger"][4]:
+                continue
+            th = _robust_theta(g.acc["stagger"][4])
+            for i, (k, f) in enumerate(zip(keys, chosen, strict=True)):
+                if k == key and f is not None and f.family == "stagger" and f.n_par > 3 * f.n_paths:
+                    lag_i = f.n0 + stag_model.pre
+                    kw = {"k_noise": k_noise, "rel_threshold": rel_threshold, "lo": lims[i][0],
+                          "hi": lims[i][1]}  # fmt: skip
+                    new = fit_arrival(x, lag_i, model=stag_model, sigma=sigmas[i], theta=th,
+                                      hold=True, **kw)  # fmt: skip
+                    if new is not None:
+                        chosen[i] = new
+    if pool:
+        for key in state:
+            for fam in ("resonator", "stagger"):
+                idx = [
+                    i
+                    for i, (k, f) in enumerate(zip(keys, chosen, strict=True))
+                    if k == key and f is not None and f.family == fam
+                ]
+                if len(idx) > 1:
+                    pooled, _ = pool_fits([chosen[i] for i in idx])
+                    for i, f in zip(idx, pooled, strict=True):
+                        chosen[i] = f
+    flags = np.zeros(len(rows), dtype=np.int64)
+    for i, f in enumerate(chosen):
+        if f is not None:
+            g = state[keys[i]]
+            extra = (1.0 - g.w) * g.d2 if stag_model is not None else 0.0
+            rows[i][0] = f.onset
+            rows[i][1] = math.sqrt(M._fit_sigma(f, fs) ** 2 + extra)
+            rows[i][2] = f.snr
+            rows[i][3] = float(f.amplitudes[f.first] / f.amplitudes.max())
+            flags[i] |= M._fit_flags(f)
+        else:
+            beta = M.rms_bandwidth_hz(mf.template, fs=fs)
+            rows[i][1] = fs / (2.0 * math.pi * beta * max(rows[i][2], 1e-12))
+            flags[i] |= flag_bit("poor_match")  # nothing the model could fit
+        if rows[i][2] < low:
+            flags[i] |= flag_bit("low_snr")
+        if early[i]:
+            flags[i] |= flag_bit("ambiguous_first_path")
+    if not rows:
+        e = Arrivals.empty(fs=fs, n_bursts=1, detector="matched")
+        return Arrivals(
+            e.onset, fs, e.sigma, e.snr_db, e.confidence, e.burst_onsets, "matched",
+            np.zeros(0, dtype=int),
+        )  # fmt: skip
+    arr = np.array(rows, dtype=np.float64)
+    onset = arr[:, 0]
+    snr_db = 20.0 * np.log10(np.maximum(arr[:, 2], 1e-300))
+    conf = np.minimum(arr[:, 3], 1.0)
+    return Arrivals(
+        onset, fs, arr[:, 1], snr_db, conf, onset[:, None].copy(), "matched",
+        arr[:, 4].astype(int), flags,
+    )  # fmt: skip
