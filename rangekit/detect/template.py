@@ -64,6 +64,13 @@ from dataclasses import dataclass
 import numpy as np
 
 from rangekit import _validate as V
+from rangekit.detect._coherent import (
+    COHERENT_SIDE,
+    coherent_interp_rms,
+    coherent_lag,
+    coherent_weight,
+    real_side_ratio,
+)
 from rangekit.detect.condition import bandlimit, bandpass_taps, clip_mask, dilate
 from rangekit.detect.matched import (
     DEFAULT_BLOCK,
@@ -329,11 +336,25 @@ def detect_template(
             continue
         lag = a0 + pk.lag
         snr = pk.height / floor if floor > 0 else math.inf
+        s_crb = 1.0 / (2.0 * math.pi * wf.beta * snr) if snr > 0 else math.inf
+        s_interp = wf.interp_rms
+        s_def = 0.0
+        if wf.coherent_reach:
+            # Wideband probe: the pulse's peak (real part), not its envelope's; the
+            # envelope's disagreement beyond its noise is the arrival's phase distortion.
+            coh = coherent_lag(c, lag, wf.coherent_reach)
+            w = 0.0 if coh is None else coherent_weight(coh[1])
+            if w > 0.0:
+                d = coh[0] - lag
+                s_def = math.sqrt(max(0.0, d**2 - s_crb**2))
+                s_coh = 1.0 / (2.0 * math.pi * wf.f_rms * snr) if snr > 0 else math.inf
+                s_crb = w * s_coh + (1.0 - w) * s_crb
+                s_interp = w * wf.coherent_rms + (1.0 - w) * s_interp
+                lag += w * d
         j = int(round(lag))
         eps, ambiguous_near = _shape(c, j, lag - j, wf, floor)
-        s_crb = 1.0 / (2.0 * math.pi * wf.beta * snr) if snr > 0 else math.inf
         s_shape = math.sqrt(eps) / (2.0 * math.pi * wf.beta)
-        sigma = math.sqrt(s_crb**2 + wf.interp_rms**2 + s_shape**2)
+        sigma = math.sqrt(s_crb**2 + s_interp**2 + s_shape**2 + s_def**2)
         bits = 0
         if clip_cum is not None:
             s0 = min(max(j, 0), len(x))
@@ -692,6 +713,9 @@ class _Filter:
     interp_rms: float  # RMS error of interp_peak on the self response, samples
     half_lobe: int  # lags from the peak to where |R| falls below 1/4 of it
     shares: np.ndarray  # expected share of the correlation per sub-band (sums to 1)
+    coherent_reach: int  # half width of the phase-coherent search (0: envelope only)
+    coherent_rms: float  # RMS error of the coherent interpolation, samples
+    f_rms: float  # RMS frequency of the weighted spectrum about 0, cycles/sample
 
     @property
     def reach(self) -> int:
@@ -781,7 +805,15 @@ def _weighted(probe: Probe, fs: float, block: int, W: np.ndarray | None, look: i
         k += 1
     half = max(2, k)
     sr = np.ascontiguousarray(sr)
-    return _Filter(base.mf, taps, sr, beta, _interp_rms(sr), half, shares)
+    # Phase-coherent timing where the real self response has no rival cycle
+    # (docs/theory/probes.md): search a quarter carrier period and a sample.
+    reach = 0
+    coh_rms = 0.0
+    if fc > 0 and real_side_ratio(sr, max(2 * half, 8)) <= COHERENT_SIDE:
+        reach = int(math.ceil(0.25 / fc)) + 1
+        coh_rms = coherent_interp_rms(sr, reach)
+    f_rms = math.sqrt(fc**2 + beta**2)
+    return _Filter(base.mf, taps, sr, beta, _interp_rms(sr), half, shares, reach, coh_rms, f_rms)
 
 
 def _interp_rms(sr: np.ndarray, n: int = 16) -> float:

@@ -56,6 +56,32 @@ def dechorate() -> None:
                 f"max {np.abs(e).max():.1f}, sigma {s.min():.2f}-{s.max():.2f}, flagged {flags}"
             )
             print("   errors", np.round(e, 1).tolist())
+            if f0 == 200.0 and not kw:
+                pair = e[:6] - e[6:]
+                print("   pairs (ch i - ch i+6, same array):", np.round(pair, 2).tolist())
+    own = R.own_peaks(rirs)
+    print(
+        f"response's own peak |h| vs the annotation: <=1 {np.sum(np.abs(own) <= 1)}/12,",
+        np.round(own, 2).tolist(),
+    )
+    # The annotation's within-array differences against the calibrated geometry (the two
+    # microphones of an array are a rigid pair, whatever the array's position error).
+    import csv
+
+    from probecorpus import DATA
+
+    with open(DATA / "geometry.csv") as fh:
+        geo = np.array([float(r["distance_m"]) for r in csv.DictReader(fh)]) / 345.844
+    geo = geo * rirs[1]
+    ann = rirs[2]
+    print(
+        "   annotation - geometry per channel:",
+        np.round(ann - geo, 2).tolist(),
+        "\n   within-array (i - (i+6)) annotation vs geometry:",
+        np.round((ann[:6] - ann[6:]) - (geo[:6] - geo[6:]), 2).tolist(),
+        "\n   within-array own peak vs geometry:",
+        np.round((ann[:6] + own[:6] - ann[6:] - own[6:]) - (geo[:6] - geo[6:]), 2).tolist(),
+    )
 
 
 def _room_rirs(rng, fs: float, n: int):

@@ -5,24 +5,30 @@ setting 011111) is convolved with a probe inside its valid band (100 Hz-14 kHz),
 0.1 s into a recording (sample 0 of the response = emission), with white noise 30 dB
 below the probe's received power (and, where named, a low-frequency shelf 35 dB above the
 white level, 50 Hz hum and a 0.1 % DC offset). The first path is compared with the
-authors' hand-annotated direct path (good to about one sample).
+authors' hand-annotated direct path (good to about one sample) and with the response's
+own peak (the peak of ``|h|``, FFT-interpolated: the convention the authors' annotation
+tool picks, ``dechorate_post2_rir_annotation.py`` of their repository).
 
 Measured (seed 5; ``python tests/detect/measure_template.py dechorate``):
 
 ==========================  ========  ========  ===========  ==============
 probe, noise                |e| <= 1  |e| <= 3  |e| <= 2 sig  max |e|
 ==========================  ========  ========  ===========  ==============
-200 Hz-13 kHz, 30 dB         6 / 12   12 / 12    12 / 12     2.2 samples
-200 Hz-13 kHz, 30 dB + LF    2 / 12   12 / 12    12 / 12     3.0 samples
-8-12 kHz, 30 dB              2 / 12    2 / 12     4 / 12    12.0 samples
+200 Hz-13 kHz, 30 dB         9 / 12   12 / 12    12 / 12     1.7 samples
+200 Hz-13 kHz, 30 dB + LF    5 / 12   12 / 12    12 / 12     3.0 samples
+200 Hz-13 kHz, 120 dB        8 / 12   12 / 12    12 / 12     1.7 samples
+8-12 kHz, 30 dB              2 / 12    2 / 12     7 / 12    11.9 samples
 ==========================  ========  ========  ===========  ==============
 
-The issue's targets (>= 11 / 12 within one sample wide, 12 / 12 within 3 samples at 8-12
-kHz) are not met; the limit is the responses, not the search (``docs/theory/probes.md``):
-the direct pulse of the band-limited response itself peaks 1.2-2.2 samples from the
-annotation on channels 0, 1, 4, 7 (envelope) whatever the noise, and at 8-12 kHz the
-loudspeaker's group delay puts the direct pulse ~4 samples late, split in two humps by
-a path 5-8 samples behind it on half the channels.
+(Envelope timing, before the phase-coherent timing of wide probes: 6 / 12, 2 / 12 and
+7 / 12 within a sample, max 2.2, 3.0, 2.1.) The issue's targets (>= 11 / 12 within one
+sample wide, 12 / 12 within 3 samples at 8-12 kHz) are not met, and no timing rule on
+this data can meet the first: the response's own peak is itself 1.2-1.8 samples from the
+annotation on channels 0, 4 and 7 (8 / 12 within a sample), and the wide sweep's onset
+is that peak within 0.18 samples on every channel. At 8-12 kHz the transducers' group
+delay in that band puts the direct pulse 3.8-5.2 samples after the broadband peak
+(channels 1, 3, 7, 9), and a path 5-8 samples behind it splits it into two humps on half
+the channels (``docs/theory/probes.md``).
 """
 
 from __future__ import annotations
@@ -73,16 +79,44 @@ def _errors(rirs, probe, *, check=True, **kw):
     return rows
 
 
+def own_peaks(rirs, up: int = 16) -> np.ndarray:
+    """The peak of each response's ``|h|`` within 3 samples of the annotation, relative to
+    it (FFT interpolation by ``up``): what the annotation marks, measured on this data."""
+    from scipy.signal import resample
+
+    h, _, direct = rirs
+    out = []
+    for ch in range(h.shape[1]):
+        i = int(round(direct[ch]))
+        fine = np.abs(resample(h[i - 64 : i + 64, ch], 128 * up))
+        k = (64 - 3) * up + int(np.argmax(fine[(64 - 3) * up : (64 + 3) * up]))
+        out.append(i - 64 + k / up - direct[ch])
+    return np.array(out)
+
+
 def test_wide_sweep_first_path_against_the_annotation(rirs):
     p = linear_sweep(200.0, 13000.0, 0.2, fs=rirs[1])
     rows = _errors(rirs, p)
     e = np.array([r[0] for r in rows])
     sig = np.array([r[1] for r in rows])
-    assert np.sum(np.abs(e) <= 1.0) >= 5  # measured 6 / 12
-    assert np.all(np.abs(e) <= 3.0)  # measured max 2.2 samples
+    assert np.sum(np.abs(e) <= 1.0) >= 8  # measured 9 / 12 (envelope timing: 6 / 12)
+    assert np.all(np.abs(e) <= 2.5)  # measured max 1.7 samples (envelope: 2.2)
     assert np.sum(np.abs(e) <= 2 * sig) >= 11  # measured 12 / 12
-    assert np.all(sig > 0.5)  # the model error: measured 1.0-2.1 samples, never 0
+    assert np.all(sig > 0.5)  # the model error: measured 1.0-2.8 samples, never 0
     assert not any("poor_match" in r[2] for r in rows)
+
+
+def test_wide_sweep_onset_is_the_responses_own_peak(rirs):
+    """The phase-coherent onset is the measured response's own peak (measured within 0.18
+    samples on all 12 channels; the envelope's peak was up to 0.9 samples from it); the
+    annotation is not that peak on channels 0, 4 and 7 (1.2-1.8 samples off it), so no
+    timing of this data is within a sample of the annotation there."""
+    p = linear_sweep(200.0, 13000.0, 0.2, fs=rirs[1])
+    e = np.array([r[0] for r in _errors(rirs, p, check=False)])
+    own = own_peaks(rirs)
+    assert np.all(np.abs(e - own) <= 0.35)  # measured max 0.18 samples
+    assert np.sum(np.abs(own) <= 1.0) == 8  # the data: channels 0, 1, 4, 7 beyond
+    assert np.all(np.abs(own[[0, 4, 7]]) > 1.1)  # measured 1.22, 1.35, 1.76
 
 
 def test_wide_sweep_with_low_frequency_noise(rirs):
@@ -91,6 +125,7 @@ def test_wide_sweep_with_low_frequency_noise(rirs):
     e = np.array([r[0] for r in rows])
     sig = np.array([r[1] for r in rows])
     assert np.all(np.abs(e) <= 3.5)  # measured max 3.0 samples
+    assert np.sum(np.abs(e) <= 1.0) >= 3  # measured 5 / 12 (envelope timing: 2 / 12)
     assert np.sum(np.abs(e) <= 2 * sig) >= 11  # measured 12 / 12
     assert all("dc_or_lowband" in r[2] for r in rows)
     assert not any("poor_match" in r[2] for r in rows)
@@ -110,8 +145,8 @@ def test_4khz_sweep_is_one_arrival_per_channel_and_flags_its_doubts(rirs):
 
 def test_sigma_is_never_zero_at_very_high_snr(rirs):
     """The issue reported sigma = 0.00000 m at 120 dB SNR; the model-error terms keep it
-    at the size of the actual error (measured sigma 0.93-1.72 samples, |e| <= 2 sigma on
-    12 / 12 channels, max |e| 2.1 samples)."""
+    at the size of the actual error (measured sigma 0.96-1.95 samples, |e| <= 2 sigma on
+    12 / 12 channels, max |e| 1.7 samples)."""
     p = linear_sweep(200.0, 13000.0, 0.2, fs=rirs[1])
     rows = _errors(rirs, p, snr_db=120.0)
     e = np.array([r[0] for r in rows])

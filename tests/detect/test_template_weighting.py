@@ -59,13 +59,15 @@ def test_far_play_in_low_frequency_noise_needs_the_weighting():
 
 
 def test_weighting_costs_nothing_in_white_noise():
-    """Without coloured noise ML weighting times the far play as well as the plain filter
-    (measured RMS 0.110 vs 0.111 samples)."""
+    """Without coloured noise ML weighting times the far play about as well as the plain
+    filter (phase-coherent timing of this wideband probe, measured RMS 0.052 vs 0.047
+    samples; with envelope timing both were 0.11)."""
     p = linear_sweep(20.0, 20000.0, 0.1)
     plain = _far_errors(p, "none", lf=False)
     ml = _far_errors(p, "ml", lf=False)
     assert np.all(plain < 2) and np.all(ml < 2)
-    assert np.sqrt(np.mean(ml**2)) <= 1.1 * np.sqrt(np.mean(plain**2))
+    assert np.sqrt(np.mean(ml**2)) <= 1.25 * np.sqrt(np.mean(plain**2))  # measured 1.12
+    assert np.sqrt(np.mean(ml**2)) < 0.08  # measured 0.052 samples
 
 
 @pytest.mark.parametrize("weighting", WEIGHTINGS)
