@@ -52,6 +52,10 @@ class RangekitGroup(click.Group):
             return super().main(args, prog_name, complete_var, standalone_mode=False, **extra)
         try:
             rv = super().main(args, prog_name, complete_var, standalone_mode=False, **extra)
+        except click.exceptions.NoArgsIsHelpError as e:
+            # A bare group (`rangekit`, `rangekit synth`): its help, as asked for, exit 0.
+            click.echo(e.ctx.get_help())
+            sys.exit(0)
         except click.ClickException as e:
             msg = " ".join(e.format_message().split())
             ctx = getattr(e, "ctx", None)

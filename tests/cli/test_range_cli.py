@@ -239,6 +239,21 @@ def test_help_of_every_command(cmd, flag):
     assert r.stderr == ""
 
 
+@pytest.mark.parametrize(
+    "cmd", [[], ["design"], ["synth"], ["plot"]], ids=lambda c: " ".join(c) or "rangekit"
+)
+def test_bare_group_prints_its_help(cmd):
+    """A group without its subcommand prints the group's help on stdout, exit 0 (was one
+    squashed error line, exit 2)."""
+    r = _run(cmd)
+    assert r.exit_code == 0, r.stderr
+    assert r.stdout == _run([*cmd, "--help"]).stdout
+    assert (
+        r.stdout.startswith(f"Usage: rangekit {' '.join(cmd)}".rstrip()) and "Commands:" in r.stdout
+    )
+    assert r.stderr == ""
+
+
 def test_range_help_lists_stable_options():
     r = _run(["range", "--help"])
     for opt in (
