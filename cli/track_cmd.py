@@ -29,7 +29,9 @@ _APPLIES = {
     "--l-max": ("lmax",),
     "--i-star": ("lmax",),
     "--beacons": _DUHL,
-    "--initial-pose": _DUHL,
+    "--initial-pose": ("range-ekf", *_DUHL),
+    "--rig": ("range-ekf",),
+    "--robust": ("range-ekf",),
     "--wheel-base": _DUHL,
     "--sigma-d": _DUHL,
     "--k-v": _DUHL,
@@ -50,7 +52,7 @@ _APPLIES = {
 DUHL_DEFAULTS = {"wheel_base_m": 0.33, "sigma_d_m": 0.01, "k_v_m": 4e-4}
 
 #: Track columns that hold whole numbers (written as integers).
-_INT_COLUMNS = frozenset({"target", "status", "n_particles"})
+_INT_COLUMNS = frozenset({"target", "status", "n_particles", "n_hypotheses"})
 
 #: Columns of the particle filter's track.
 PARTICLE_COLUMNS = ("t_s", "x_m", "y_m", "n_particles", "spread_m")
@@ -125,6 +127,20 @@ DUHL_COLUMNS = (
     "derived one, or the one the paper prints [physical].",
 )
 @click.option(
+    "--rig",
+    type=click.Path(dir_okay=True),
+    default=None,
+    metavar="RIG.json",
+    help="range-ekf: track a body against the fixed anchors of this rig file (docs/rigs.md); "
+    "LOG is then a DUHL-format log of odometry and anchor ranges.",
+)
+@click.option(
+    "--robust",
+    type=click.Choice(["huber", "student-t", "none"]),
+    default=None,
+    help="range-ekf with --rig: weighting of ranges by their normalised innovation [huber].",
+)
+@click.option(
     "--l-max",
     "l_max",
     type=FiniteRange(0.0, None, min_open=True),
@@ -155,9 +171,9 @@ DUHL_COLUMNS = (
     "initial_pose",
     default=None,
     metavar="X,Y,DEG",
-    help="duhl, duhl-ranges: the robot's pose at the first odometry row (m, m, degrees). "
-    "Without it the filter starts where two transmitters have been heard, from a UHL "
-    "solve.",
+    help="duhl, duhl-ranges, range-ekf with --rig: the robot's pose at the first odometry "
+    "row (m, m, degrees; X,Y for a rig without odometry). Without it the filter starts "
+    "from the first ranges (UHL solve or multilateration).",
 )
 @click.option(
     "--wheel-base",
@@ -262,6 +278,8 @@ def track_cmd(
     gate,
     no_gate,
     cross_sign,
+    rig,
+    robust,
     l_max,
     i_star,
     beacons,
@@ -307,6 +325,8 @@ def track_cmd(
         "--gate": gate is not None,
         "--no-gate": no_gate,
         "--cross-sign": cross_sign is not None,
+        "--rig": rig is not None,
+        "--robust": robust is not None,
         "--smooth": smooth,
         "--l-max": l_max is not None,
         "--i-star": i_star is not None,
@@ -338,7 +358,17 @@ def track_cmd(
     extra: dict = {}
     summary = None
     notes: list[str] = []
-    if filter_ == "range-ekf":
+    if filter_ == "range-ekf" and rig is not None:
+        for opt in ("--accel-psd", "--gate", "--no-gate", "--cross-sign"):
+            if given[opt]:
+                raise click.UsageError(f"{opt} does not apply with --rig (robust weights, no gate)")
+        columns, rows, extra, summary = _range_ekf_rig(
+            log, rig, initial_pose=initial_pose, robust=robust or "huber", smooth=smooth
+        )
+    elif filter_ == "range-ekf":
+        for opt in ("--initial-pose", "--robust"):
+            if given[opt]:
+                raise click.UsageError(f"{opt} applies to --filter range-ekf only with --rig")
         columns, rows, extra, summary = _range_ekf(
             log,
             accel_psd=0.05 if accel_psd is None else accel_psd,
@@ -452,6 +482,64 @@ def _range_ekf(log, *, accel_psd, gate, cross_sign, smooth):
             f"; smoothed along the final best branch ({other} epochs where the causal "
             "filter reported another)"
         )
+    return columns, rows, extra, summary
+
+
+def _range_ekf_rig(log, rig_path, *, initial_pose, robust, smooth):
+    """Fixed-anchor tracking (rangekit.localize.anchor_ekf) of a DUHL-format log."""
+    from rangekit.io.duhllog import read_duhl_log
+    from rangekit.localize.anchor_ekf import track_anchors, track_rows
+    from rangekit.rig import read_rig
+
+    rig = read_rig(rig_path)
+    pose0 = None
+    if initial_pose is not None:
+        vals = float_list(initial_pose, name="--initial-pose")
+        want = 3 if rig.odometry.kind == "differential-drive" else 2
+        if len(vals) != want:
+            raise click.BadParameter(
+                f"{initial_pose!r} must be {'X,Y,DEG' if want == 3 else 'X,Y'} for this rig "
+                f"({rig.odometry.kind} odometry), got {len(vals)} numbers",
+                param_hint="--initial-pose",
+            )
+        pose0 = [vals[0], vals[1], math.radians(vals[2])] if want == 3 else vals
+    name = str(log)
+    dlog = read_duhl_log(log, name=name)
+    trk = track_anchors(dlog, rig, initial_pose=pose0, robust=robust, smooth=smooth, name=name)
+    columns, rows = track_rows(trk, smoothed=smooth)
+    n_down = len(trk.downweighted)
+    bias_txt = ", ".join(
+        f"{int(a)}: {b:+.3f}±{s:.3f}"
+        for a, b, s in zip(trk.anchor_ids, trk.bias_m, trk.bias_sigma_m, strict=True)
+    )
+    summary = (
+        f"range-ekf (rig {rig_path}): {trk.t_s.size} distance rows from t_s={trk.t_s[0]:g} "
+        f"(start: {trk.start}), {n_down} ranges down-weighted ({robust}); range bias m "
+        f"per anchor {bias_txt}"
+    )
+    extra = {
+        "rig": str(rig_path),
+        "robust": robust,
+        "start": trk.start,
+        "start_t_s": float(trk.start_t_s),
+        "initial_pose": pose0,
+        "biases": [
+            {"anchor": int(a), "bias_m": float(b), "sigma_m": float(s)}
+            for a, b, s in zip(trk.anchor_ids, trk.bias_m, trk.bias_sigma_m, strict=True)
+        ],
+        "downweighted": [
+            {
+                "t_s": d.t_s,
+                "anchor": d.anchor,
+                "tag": d.tag,
+                "range_m": d.range_m,
+                "residual_m": d.residual_m,
+                "nu": d.nu,
+                "weight": d.weight,
+            }
+            for d in trk.downweighted
+        ],
+    }
     return columns, rows, extra, summary
 
 

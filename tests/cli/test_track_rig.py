@@ -1,0 +1,127 @@
+"""``rangekit track --filter range-ekf --rig``: fixed anchors from a rig file (issue 18)."""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+from clihelp import assert_error, ok, run
+
+from rangekit.sim.rigs import simulate_rig_run, square_rig
+
+RIGS = Path(__file__).resolve().parents[2] / "docs" / "rigs"
+SQUARE = RIGS / "one_tag_square.json"
+
+
+@pytest.fixture(scope="module")
+def sim():
+    return simulate_rig_run(square_rig(), duration_s=40.0, rng=3)
+
+
+@pytest.fixture
+def log(tmp_path, sim):
+    p = tmp_path / "robot.csv"
+    sim.log.to_csv(p)
+    return p
+
+
+def _table(text):
+    rows = list(csv.reader(io.StringIO(text)))
+    return rows[0], np.array([[float(c) if c else np.nan for c in r] for r in rows[1:]])
+
+
+def test_csv_follows_the_truth_and_reports(log, sim):
+    r = ok(run(["track", "--filter", "range-ekf", "--rig", SQUARE, log]))
+    cols, rows = _table(r.stdout)
+    assert cols[:4] == ["t_s", "x_m", "y_m", "heading_rad"] and cols[-1] == "n_hypotheses"
+    err = np.hypot(*(rows[:, 1:3] - sim.truth_xy(rows[:, 0])).T)
+    assert np.sqrt(np.mean(err**2)) < 0.12  # measured 0.06
+    assert "start: multilateration" in r.stderr and "down-weighted (huber)" in r.stderr
+    assert "Traceback" not in r.stderr
+
+
+def test_json_biases_downweighted_smooth_and_plot(tmp_path, log, sim):
+    out = tmp_path / "t.json"
+    p0 = sim.truth_pose([0.0])[0]
+    pose = f"{p0[0]},{p0[1]},{np.degrees(p0[2])}"
+    ok(run(["track", "--filter", "range-ekf", "--rig", SQUARE, log, "--initial-pose", pose,
+            "--smooth", "--robust", "student-t", "--format", "json", "-o", out]))  # fmt: skip
+    js = json.loads(out.read_text())
+    assert js["start"] == "given" and js["robust"] == "student-t" and js["smoothed"]
+    assert [b["anchor"] for b in js["biases"]] == [1, 2, 3, 4]
+    assert all(abs(b["bias_m"] - 0.10) < 3 * b["sigma_m"] + 0.01 for b in js["biases"])
+    dw = js["downweighted"]
+    assert dw and all(0 < d["weight"] < 1 and d["tag"] == 1 for d in dw)
+    rows = np.array(js["rows"], dtype=float)
+    assert np.all(rows[:, 4] > 0) and np.all(rows[:, 5] > 0)
+    png = tmp_path / "t.png"
+    ok(run(["plot", "track", out, "-o", png]))
+    assert png.stat().st_size > 5000
+
+
+def test_kim_rig_on_a_kim_log(tmp_path):
+    from rangekit.sim.kim2013 import simulate
+
+    r = simulate(1, t_max_s=8.0, rng=1)
+    p = tmp_path / "run.csv"
+    r.to_log().to_csv(p)
+    res = ok(run(["track", "--filter", "range-ekf", "--rig", RIGS / "kim2013.json", p]))
+    _, rows = _table(res.stdout)
+    truth = np.column_stack([np.interp(rows[:, 0], r.t_s, r.true_pose[:, c]) for c in (0, 1)])
+    assert np.max(np.hypot(*(rows[-10:, 1:3] - truth[-10:]).T)) < 0.05
+
+
+@pytest.mark.parametrize(
+    ("extra", "named"),
+    [
+        (["--gate", "0.9"], "--gate does not apply with --rig"),
+        (["--cross-sign", "paper"], "--cross-sign does not apply with --rig"),
+        (["--initial-pose", "1,1"], "--initial-pose"),
+        (["--robust", "cauchy"], "--robust"),
+    ],
+)
+def test_usage_errors(log, extra, named):
+    assert_error(run(["track", "--filter", "range-ekf", "--rig", SQUARE, log, *extra]), 2, named)
+
+
+def test_rig_options_need_a_rig(log):
+    assert_error(run(["track", "--filter", "range-ekf", log, "--robust", "huber"]), 2, "--rig")
+    assert_error(run(["track", "--filter", "lmax", log, "--rig", SQUARE]), 2, "--rig")
+
+
+def test_bad_rig_file(tmp_path, log):
+    doc = json.loads(SQUARE.read_text())
+    del doc["anchors"][2]["y_m"]
+    bad = tmp_path / "rig.json"
+    bad.write_text(json.dumps(doc))
+    assert_error(run(["track", "--filter", "range-ekf", "--rig", bad, log]), 3, "rig.json",
+                 "anchors[2]: missing key 'y_m'")  # fmt: skip
+    assert_error(run(["track", "--filter", "range-ekf", "--rig", tmp_path / "no.json", log]), 3,
+                 "no.json")  # fmt: skip
+
+
+def test_log_that_does_not_fit_the_rig(tmp_path, log):
+    doc = json.loads(SQUARE.read_text())
+    doc["anchors"] = doc["anchors"][:3]
+    three = tmp_path / "three.json"
+    three.write_text(json.dumps(doc))
+    assert_error(run(["track", "--filter", "range-ekf", "--rig", three, log]), 5, "robot.csv",
+                 "names anchor 4")  # fmt: skip
+    doc = json.loads(SQUARE.read_text())
+    doc["odometry"] = {"type": "steps"}
+    steps = tmp_path / "steps.json"
+    steps.write_text(json.dumps(doc))
+    assert_error(run(["track", "--filter", "range-ekf", "--rig", steps, log]), 5, "step events")
+    doc["odometry"] = {"type": "none"}
+    steps.write_text(json.dumps(doc))
+    assert_error(run(["track", "--filter", "range-ekf", "--rig", steps, log]), 4,
+                 "odometry rows in the log")  # fmt: skip
+    lines = log.read_text().splitlines()
+    keep = [ln for ln in lines if ",distance," not in ln]
+    (tmp_path / "noranges.csv").write_text("\n".join(keep) + "\n")
+    assert_error(run(["track", "--filter", "range-ekf", "--rig", SQUARE,
+                      tmp_path / "noranges.csv"]), 4, "noranges.csv")  # fmt: skip
