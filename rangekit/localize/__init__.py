@@ -1,5 +1,5 @@
-"""State estimation: the EKF core and RTS smoother, the Jiang 2018 range tracker, and
-Ahn & Yu's dead-reckoning EKF and l_max filter.
+"""State estimation: the EKF core and RTS smoother, the Jiang 2018 range tracker, the
+range EKF against a rig's fixed anchors, and Ahn & Yu's dead-reckoning EKF and l_max filter.
 
 Examples
 --------
@@ -10,6 +10,7 @@ Examples
 
 from __future__ import annotations
 
+from rangekit.localize.anchor_ekf import AnchorTrack, track_anchors
 from rangekit.localize.deadreckoning import DeadReckoningResult, dead_reckon
 from rangekit.localize.ekf import (
     ExtendedKalmanFilter,
@@ -25,6 +26,7 @@ from rangekit.localize.lmax import lmax_offline, lmax_online
 from rangekit.localize.range_ekf import RangeTrack, track_ranges
 
 __all__ = [
+    "AnchorTrack",
     "DeadReckoningResult",
     "ExtendedKalmanFilter",
     "RangeTrack",
@@ -37,6 +39,7 @@ __all__ = [
     "numerical_jacobian",
     "predict",
     "rts_smooth",
+    "track_anchors",
     "track_ranges",
     "update",
 ]
