@@ -66,6 +66,24 @@ def beep_options(f):
     return f
 
 
+#: The options of :func:`beep_options`, by parameter name.
+BEEP_OPTIONS = {
+    "f_hz": "--freq",
+    "n_bursts": "--bursts",
+    "spacing": "--spacing",
+    "burst_len": "--burst-len",
+    "taper": "--taper",
+    "beep_fs": "--beep-fs",
+}
+
+
+def refuse_beep_options(kw: dict) -> None:
+    """Usage error if a beep option was given with ``--template`` (the probe replaces it)."""
+    for key, opt in BEEP_OPTIONS.items():
+        if kw.get(key) is not None:
+            raise click.UsageError(f"{opt} describes the built-in beep; drop it or --template")
+
+
 def make_beep(kw: dict, *, amplitude: float | None = None):
     """Build a Beep from the options of :func:`beep_options` (popped from ``kw``)."""
     from rangekit.signals import Beep

@@ -9,6 +9,7 @@ from rangekit_cli._options import (
     debug_option,
     detector_option,
     make_beep,
+    refuse_beep_options,
     speed_of_sound_option,
     temperature_option,
     template_option,
@@ -132,6 +133,8 @@ def calibrate_cmd(
         from rangekit_cli.range_cmd import _refuse_ultrasonic_options
 
         _refuse_ultrasonic_options(kw)
+        if probe is not None:
+            refuse_beep_options(kw)
         beep = make_beep(kw)
         meas = measure_recordings(
             recs, scheme=scheme, probe=probe, beep=beep, detector=detector, speed_m_s=c

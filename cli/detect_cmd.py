@@ -12,19 +12,9 @@ from rangekit_cli._options import (
     load_template,
     make_beep,
     output_option,
+    refuse_beep_options,
     template_option,
 )
-
-#: The beep options, by parameter name, for the usage error with --template.
-_BEEP_OPTIONS = {
-    "f_hz": "--freq",
-    "n_bursts": "--bursts",
-    "spacing": "--spacing",
-    "burst_len": "--burst-len",
-    "taper": "--taper",
-    "beep_fs": "--beep-fs",
-}
-
 
 #: Options that only apply to the matched filter (--template or --detector template).
 _TEMPLATE_OPTIONS = {
@@ -99,9 +89,7 @@ def detect_cmd(files, detector, template, expected, min_separation, weighting, f
             raise click.UsageError(
                 "--detector applies to the built-in beep; --template uses the matched filter"
             )
-        for key, opt in _BEEP_OPTIONS.items():
-            if beep_kw.get(key) is not None:
-                raise click.UsageError(f"{opt} describes the built-in beep; drop it or --template")
+        refuse_beep_options(beep_kw)
     method = "template" if template is not None else detector
     if method != "template":
         extra = {"min_separation": min_separation, "weighting": weighting}

@@ -14,6 +14,7 @@ from rangekit_cli._options import (
     format_option,
     make_beep,
     output_option,
+    refuse_beep_options,
     self_distance_option,
     speed_of_sound_option,
     temperature_option,
@@ -196,6 +197,8 @@ def range_cmd(
     sd = float_list(self_distance, name="--self-distance", lo=0.0, hi=2.0)
     if cal is not None:
         _refuse_self_distance(sd)
+    if probe is not None:
+        refuse_beep_options(kw)
     beep = make_beep(kw)
     if series:
         from rangekit.physics import speed_of_sound_m_s

@@ -10,7 +10,9 @@ from rangekit_cli._options import (
     beep_options,
     debug_option,
     float_list,
+    load_template,
     make_beep,
+    refuse_beep_options,
     temperature_option,
 )
 
@@ -132,6 +134,15 @@ def _parse_point(text: str, name: str) -> list[float]:
 @click.option("--mono", is_flag=True, help="Write one mono WAV per device (NAME_devI.wav).")
 @click.option("--seed", type=int, default=None, help="Random seed (recording starts, noise).")
 @beep_options
+@click.option(
+    "--template",
+    "template",
+    type=click.Path(),
+    default=None,
+    metavar="FILE",
+    help="A probe file (e.g. from `rangekit design sweep`) every device plays instead of the "
+    "beep; range the result with `range --template FILE`.",
+)
 @impair_option
 @click.option(
     "-o", "--output", type=click.Path(dir_okay=False), required=True, help="WAV file to write."
@@ -139,7 +150,7 @@ def _parse_point(text: str, name: str) -> list[float]:
 @debug_option
 def synth_beepbeep(
     distance, positions, self_distance, snr_db, no_noise, noise, room, absorption, order,
-    temp_c, ppm, fs, mono, seed, impairments, output, **beep_kw,
+    temp_c, ppm, fs, mono, seed, template, impairments, output, **beep_kw,
 ):  # fmt: skip
     """An exchange in which every device plays the beep in turn (device 0 first).
 
@@ -156,6 +167,8 @@ def synth_beepbeep(
           --room 6,5,3 --seed 2 -o three.wav
       rangekit synth beepbeep --distance 2 --seed 1 --impair dc=0.02,clip_db=10,hum_db=30 \\
           -o x.wav
+      rangekit design sweep --f0 2000 --f1 6000 --duration 0.1 -o sweep.wav
+      rangekit synth beepbeep --distance 2 --template sweep.wav --seed 1 -o sw.wav
     """
     import numpy as np
 
@@ -165,7 +178,9 @@ def synth_beepbeep(
     from rangekit.sim.impair import noise_floor_psd
 
     rng = np.random.default_rng(seed)
-    beep = make_beep(beep_kw)
+    if template is not None:
+        refuse_beep_options(beep_kw)
+    beep = load_template(template) if template is not None else make_beep(beep_kw)
     if positions and distance is not None:
         raise click.UsageError("give --distance or --position, not both")
     room_obj = None
