@@ -30,7 +30,7 @@ _APPLIES = {
     "--i-star": ("lmax",),
     "--beacons": _DUHL,
     "--initial-pose": ("range-ekf", *_DUHL),
-    "--rig": ("range-ekf",),
+    "--rig": ("range-ekf", *_DUHL),
     "--robust": ("range-ekf",),
     "--wheel-base": _DUHL,
     "--sigma-d": _DUHL,
@@ -132,7 +132,8 @@ DUHL_COLUMNS = (
     default=None,
     metavar="RIG.json",
     help="range-ekf: track a body against the fixed anchors of this rig file (docs/rigs.md); "
-    "LOG is then a DUHL-format log of odometry and anchor ranges.",
+    "LOG is then a DUHL-format log of odometry and anchor ranges. duhl, duhl-ranges: the "
+    "rig instead of --beacons (three receivers on a circle, Kim & Kim 2013).",
 )
 @click.option(
     "--robust",
@@ -406,6 +407,7 @@ def track_cmd(
             sigma_d=sigma_d,
             k_v=k_v,
             gate=gate,
+            rig=rig,
         )
 
     table = [_row(columns, r) for r in rows]
@@ -570,7 +572,7 @@ def _initial_pose(text: str | None) -> list[float] | None:
     return [vals[0], vals[1], math.radians(vals[2])]
 
 
-def _duhl(log, filter_, *, beacons, initial_pose, wheel_base, sigma_d, k_v, gate):
+def _duhl(log, filter_, *, beacons, initial_pose, wheel_base, sigma_d, k_v, gate, rig=None):
     import numpy as np
 
     from rangekit.errors import IncompatibleInputError, InvalidParameterError, LogFormatError
@@ -584,20 +586,30 @@ def _duhl(log, filter_, *, beacons, initial_pose, wheel_base, sigma_d, k_v, gate
     )
     from rangekit.localize.duhl import DUHLConfig, track_log
 
-    if beacons is None:
+    if beacons is None and rig is None:
         raise click.UsageError(
-            f"--filter {filter_} needs --beacons FILE (the transmitters' positions)"
+            f"--filter {filter_} needs --beacons FILE (the transmitters' positions) or --rig"
         )
+    if beacons is not None and rig is not None:
+        raise click.UsageError("give the transmitters once: --beacons or --rig, not both")
     pose0 = _initial_pose(initial_pose)
+    name = str(log)
+    dlog = read_duhl_log(log, name=name)
+    from_rig: dict = {}
+    if rig is not None:
+        from rangekit.localize.duhl import rig_inputs
+        from rangekit.rig import read_rig
+
+        bcn, dlog, from_rig = rig_inputs(read_rig(rig), dlog, name=str(rig))
+        beacons = rig
+    else:
+        bcn = read_beacons(beacons)
     given = {"wheel_base_m": wheel_base, "sigma_d_m": sigma_d, "k_v_m": k_v}
     config = DUHLConfig(
-        **{k: v for k, v in given.items() if v is not None},
+        **(from_rig | {k: v for k, v in given.items() if v is not None}),
         variant="ranges" if filter_ == "duhl-ranges" else "duhl",
         gate_prob=gate,
     )
-    name = str(log)
-    dlog = read_duhl_log(log, name=name)
-    bcn = read_beacons(beacons)
     known = {int(i) for i in bcn.ids.tolist()}
     d = dlog.distances
     for t_s, tx in zip(d.t_s.tolist(), d.tx.tolist(), strict=True):

@@ -54,6 +54,7 @@ __all__ = [
     "DUHLConfig",
     "DUHLTrack",
     "UHLLastTwo",
+    "rig_inputs",
     "track_duhl",
     "track_log",
     "uhl_last_two",
@@ -521,3 +522,61 @@ def uhl_last_two(
         pose=np.asarray(poses, dtype=np.float64).reshape(-1, 3),
         row=np.asarray(rows, dtype=np.int64),
     )
+
+
+def rig_inputs(rig, log, *, name: str | None = None):
+    """DUHL's inputs from a :class:`~rangekit.rig.Rig`: ``(beacons, log, config_kwargs)``.
+
+    DUHL's robot is Kim & Kim 2013's (eq (1)): three receivers at 0°, 120°, 240° on one
+    circle around the centre, at one height; the rig must describe that (a one-tag robot
+    or another geometry goes to the range EKF, ``track --filter range-ekf --rig``). The
+    anchors become the beacons (their heights taken relative to the receivers'); a known
+    ``bias_m`` is subtracted from that anchor's distances (DUHL estimates no bias);
+    ``sigma_d_m`` is the largest anchor sigma, the wheel base and ``k_v`` those of the
+    rig's differential drive.
+
+    Raises
+    ------
+    IncompatibleInputError
+        The rig is not a three-receiver circle, or has no differential drive.
+    """
+    from rangekit.errors import IncompatibleInputError
+    from rangekit.io.duhllog import Beacons, DistanceRows, DUHLLog
+
+    name = name or rig.name or "the rig"
+    if rig.odometry.kind != "differential-drive":
+        raise IncompatibleInputError(
+            f"{name}: DUHL needs differential-drive odometry (the rig has "
+            f"{rig.odometry.kind!r}); use --filter range-ekf --rig"
+        )
+    lv = rig.tag_lever_m
+    rad = np.hypot(lv[:, 0], lv[:, 1]) if lv.size else np.zeros(0)
+    ang = np.degrees(np.arctan2(lv[:, 1], lv[:, 0])) % 360 if lv.size else np.zeros(0)
+    want = np.array([0.0, 120.0, 240.0])
+    circle = (
+        rig.n_tags == 3
+        and rad.min() > 0
+        and np.ptp(rad) < 1e-3
+        and np.all(np.abs((ang - want + 180) % 360 - 180) < 0.5)
+        and np.ptp(lv[:, 2]) < 1e-6
+    )
+    if not circle:
+        raise IncompatibleInputError(
+            f"{name}: DUHL needs three receivers at 0, 120, 240 degrees on one circle "
+            f"(Kim & Kim 2013 eq (1)); the rig has {rig.n_tags} tag(s) "
+            "elsewhere, use --filter range-ekf --rig"
+        )
+    xyz = rig.anchor_xyz_m.copy()
+    xyz[:, 2] -= lv[0, 2]
+    beacons = Beacons(rig.anchor_ids, xyz)
+    d = log.distances
+    bias = {int(i): float(b) for i, b in zip(rig.anchor_ids, rig.anchor_bias_m, strict=True)}
+    corr = np.array([bias.get(int(t), 0.0) for t in d.tx])[:, None]
+    log = DUHLLog(log.odometry, DistanceRows(d.t_s, d.tx, d.d_m - corr))
+    cfg = {
+        "wheel_base_m": rig.odometry.wheel_base_m,
+        "k_v_m": rig.odometry.k_v_m,
+        "sigma_d_m": float(np.max(rig.anchor_sigma_m)),
+        "r_R_m": float(rad.mean()),
+    }
+    return beacons, log, cfg

@@ -125,3 +125,25 @@ def test_log_that_does_not_fit_the_rig(tmp_path, log):
     (tmp_path / "noranges.csv").write_text("\n".join(keep) + "\n")
     assert_error(run(["track", "--filter", "range-ekf", "--rig", SQUARE,
                       tmp_path / "noranges.csv"]), 4, "noranges.csv")  # fmt: skip
+
+
+def test_duhl_reads_kims_rig_like_its_beacon_file(tmp_path):
+    """The shipped Kim & Kim rig gives DUHL the same transmitters, wheel base, k_v,
+    sigma and receiver circle as the beacon file and defaults: the same track."""
+    from rangekit.sim.kim2013 import simulate
+
+    r = simulate(1, t_max_s=6.0, rng=2)
+    p = tmp_path / "run.csv"
+    r.to_log().to_csv(p)
+    bcn = tmp_path / "beacons.json"
+    bcn.write_text(json.dumps(r.beacons.to_json()))
+    for filt in ("duhl", "duhl-ranges"):
+        a = _table(ok(run(["track", "--filter", filt, p, "--beacons", bcn])).stdout)[1]
+        b = _table(ok(run(["track", "--filter", filt, p, "--rig", RIGS / "kim2013.json"])).stdout)[
+            1
+        ]
+        assert a.shape == b.shape and np.allclose(a, b, rtol=0, atol=1e-9, equal_nan=True)
+    assert_error(run(["track", "--filter", "duhl", p, "--rig", SQUARE]), 5, "one_tag_square.json",
+                 "three receivers")  # fmt: skip
+    assert_error(run(["track", "--filter", "duhl", p, "--rig", SQUARE, "--beacons", bcn]), 2,
+                 "--beacons or --rig")  # fmt: skip
