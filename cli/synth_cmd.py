@@ -132,6 +132,29 @@ def _parse_point(text: str, name: str) -> list[float]:
     "--fs", type=float, default=44100.0, show_default=True, help="Recording sample rate, Hz."
 )
 @click.option("--mono", is_flag=True, help="Write one mono WAV per device (NAME_devI.wav).")
+@click.option(
+    "--exchanges",
+    type=click.IntRange(1, 100000),
+    default=1,
+    show_default=True,
+    help="Exchanges in the recording, --period apart: a series for `range --series` and "
+    "`--clock-rate` (at most 100000).",
+)
+@click.option(
+    "--period",
+    type=FiniteRange(min=0.0, min_open=True),
+    default=None,
+    metavar="S",
+    help="With --exchanges: seconds between the starts of consecutive exchanges [3].",
+)
+@click.option(
+    "--jitter",
+    type=FiniteRange(min=0.0),
+    default=None,
+    metavar="S",
+    help="With --exchanges: each gap between two devices' plays is lengthened by a uniform "
+    "random time in [0, S] seconds [0].",
+)
 @click.option("--seed", type=int, default=None, help="Random seed (recording starts, noise).")
 @beep_options
 @click.option(
@@ -150,7 +173,8 @@ def _parse_point(text: str, name: str) -> list[float]:
 @debug_option
 def synth_beepbeep(
     distance, positions, self_distance, snr_db, no_noise, noise, room, absorption, order,
-    temp_c, ppm, fs, mono, seed, template, impairments, output, **beep_kw,
+    temp_c, ppm, fs, mono, exchanges, period, jitter, seed, template, impairments, output,
+    **beep_kw,
 ):  # fmt: skip
     """An exchange in which every device plays the beep in turn (device 0 first).
 
@@ -158,7 +182,9 @@ def synth_beepbeep(
     a random start (0-0.1 s, seeded) at --fs with its --ppm clock error. Writes OUTPUT
     (one channel per device, 16-bit PCM) and OUTPUT with suffix .json: positions, every
     device's true onsets in its own samples, and each pair's true distance. --impair
-    adds real recordings' impairments (the truth moves with silence_s).
+    adds real recordings' impairments (the truth moves with silence_s). With --exchanges N
+    the recording holds N exchanges --period apart (the sidecar's "exchanges" lists each
+    one's play times): a series for `range --series`, with --ppm for `--clock-rate`.
 
     \b
     Examples:
@@ -169,6 +195,8 @@ def synth_beepbeep(
           -o x.wav
       rangekit design sweep --f0 2000 --f1 6000 --duration 0.1 -o sweep.wav
       rangekit synth beepbeep --distance 2 --template sweep.wav --seed 1 -o sw.wav
+      rangekit synth beepbeep --distance 2 --exchanges 20 --period 2 --ppm 0,40 \\
+          --mono --seed 1 -o series.wav
     """
     import numpy as np
 
@@ -178,6 +206,10 @@ def synth_beepbeep(
     from rangekit.sim.impair import noise_floor_psd
 
     rng = np.random.default_rng(seed)
+    if exchanges == 1:
+        for opt, v in (("--period", period), ("--jitter", jitter)):
+            if v is not None:
+                raise click.UsageError(f"{opt} applies with --exchanges N (N > 1) only")
     if template is not None:
         refuse_beep_options(beep_kw)
     beep = load_template(template) if template is not None else make_beep(beep_kw)
@@ -214,15 +246,28 @@ def synth_beepbeep(
             clock_ppm=tuple(float(c) for c in clock),
             fs=fs,
         )
-    sim = render_beepbeep(
-        devices,
-        beep=beep,
-        temp_c=temp_c,
-        snr_db=None if no_noise else snr_db,
-        noise=noise,
-        room=room_obj,
-        rng=rng,
-    )
+    common = {
+        "temp_c": temp_c,
+        "snr_db": None if no_noise else snr_db,
+        "noise": noise,
+        "room": room_obj,
+        "rng": rng,
+    }
+    if exchanges == 1:
+        sim = render_beepbeep(devices, beep=beep, **common)
+    else:
+        from rangekit.sim.exchanges import render_exchanges
+
+        source = beep.as_probe()
+        sim = render_exchanges(
+            devices,
+            source=source.samples,
+            source_fs=source.fs,
+            n_exchanges=exchanges,
+            period_s=3.0 if period is None else period,
+            jitter_s=0.0 if jitter is None else jitter,
+            **common,
+        )
     out = Path(output)
     floors = [
         noise_floor_psd(d["noise_sigma"], fs=fs, kind=noise, n_samples=len(x))
