@@ -6,12 +6,16 @@ import math
 
 import click
 from rangekit_cli._options import (
+    FiniteRange,
     beep_options,
     debug_option,
     detector_option,
+    load_template,
     make_beep,
+    refuse_beep_options,
     speed_of_sound_option,
     temperature_option,
+    template_option,
     ultrasonic_kwargs,
     ultrasonic_options,
 )
@@ -79,18 +83,36 @@ def plot():
     """
 
 
+def _window_option(name: str, dest: str, help: str):
+    return click.option(name, dest, type=FiniteRange(min=0.0), default=None, metavar="X", help=help)
+
+
 @plot.command("spectrogram")
 @click.argument("recording", type=click.Path(dir_okay=True), metavar="REC.wav")
 @_channel_option
 @detector_option
+@template_option
 @beep_options
+@_window_option("--t0", "t0_s", "Start of the time window to show, s [0].")
+@_window_option("--t1", "t1_s", "End of the time window to show, s [the recording's end].")
+@_window_option("--fmin", "fmin_hz", "Lowest frequency to show, Hz [0].")
+@_window_option("--fmax", "fmax_hz", "Highest frequency to show, Hz [fs/2].")
 @_output
 @debug_option
-def spectrogram_cmd(recording, channel, detector, output, **beep_kw):
-    """STFT spectrogram (dB) of one channel, with the detected beep onsets marked.
+def spectrogram_cmd(
+    recording, channel, detector, template, t0_s, t1_s, fmin_hz, fmax_hz, output, **beep_kw
+):
+    """STFT spectrogram (dB) of one channel, with the detected onsets marked.
 
-    The onsets are those `rangekit detect` prints for that channel (same detector and
-    beep options); a channel without beep is drawn without marks.
+    The onsets are those `rangekit detect` prints for that channel (same detector, beep
+    options or --template); a channel without any is drawn without marks. --t0/--t1 and
+    --fmin/--fmax zoom into a long recording (the STFT is computed on the window only).
+
+    \b
+    Examples:
+      rangekit plot spectrogram x.wav -o x.png
+      rangekit plot spectrogram x.wav --t0 0.1 --t1 0.3 --fmin 14000 --fmax 18000 -o zoom.png
+      rangekit plot spectrogram sw.wav --template sweep.wav -o sw.png
     """
     import numpy as np
 
@@ -99,20 +121,37 @@ def spectrogram_cmd(recording, channel, detector, output, **beep_kw):
     from rangekit.ranging.pipeline import detect_channel
 
     _start(output)
+    probe = load_template(template)
+    if probe is not None:
+        refuse_beep_options(beep_kw)
+        if click.get_current_context().get_parameter_source("detector") == (
+            click.core.ParameterSource.COMMANDLINE
+        ):
+            raise click.UsageError(
+                "--detector applies to the built-in beep; --template uses the matched filter"
+            )
     beep = make_beep(beep_kw)
+    method = "template" if probe is not None else detector
     x, fs = _read_channel(recording, channel)
     src = f"{recording}#{channel}"
     ch = Channel(np.ascontiguousarray(x[:, channel]), fs, src)
-    arr = detect_channel(ch, beep=beep, detector=detector)
-    plot_spectrogram(
+    arr = detect_channel(ch, beep=beep, detector=detector, probe=probe)
+    what = "beep onset(s)" if probe is None else f"arrival(s) of '{probe.name}'"
+    out = plot_spectrogram(
         ch.x,
         output,
         fs=fs,
         onsets=arr.onset,
-        title=f"{src}: {len(arr)} beep onset(s), {detector} detector",
-        label=f"onset ({detector})",
+        title=f"{src}: {len(arr)} {what}, {method} detector",
+        label=f"onset ({method})",
+        t0_s=t0_s,
+        t1_s=t1_s,
+        fmin_hz=fmin_hz,
+        fmax_hz=fmax_hz,
     )
-    _done(output, f"{len(arr)} onset(s) marked")
+    shown = len(out.onsets_s)
+    inside = f", {shown} in the window" if shown != len(arr) else ""
+    _done(output, f"{len(arr)} onset(s) marked{inside}")
 
 
 @plot.command("matched")
@@ -179,25 +218,96 @@ def matched_cmd(recording, scheme, channel, window, temp_c, speed, output, **kw)
 
 @plot.command("ranges")
 @click.argument("series", type=click.Path(dir_okay=True), metavar="SERIES.csv|json")
+@click.option(
+    "--truth",
+    default=None,
+    metavar="M|FILE.json",
+    help="The true distance: metres (every series), or the JSON sidecar `rangekit synth "
+    "beepbeep` wrote (its pairs' distances, by pair). Drawn as a dashed line; the summary "
+    "line counts the ranges within 2 sigma of it.",
+)
 @_output
 @debug_option
-def ranges_cmd(series, output):
+def ranges_cmd(series, truth, output):
     """Range time series with ±1 sigma and ±2 sigma bands, one line per series.
 
     SERIES is the output of `rangekit range --series` (CSV, or JSON with a "ranges" list):
     columns t_s, distance_m, sigma_m and the key a,b (pairs), tx,channel (oneway) or
     channel (echo). An empty distance is a gap.
+
+    \b
+    Examples:
+      rangekit plot ranges series.csv -o ranges.png
+      rangekit plot ranges series.csv --truth 2.0 -o ranges.png
+      rangekit plot ranges series.csv --truth s.json -o ranges.png
     """
     import numpy as np
 
-    from rangekit.plot.figures import plot_ranges
+    from rangekit.plot.figures import plot_ranges, truth_for
     from rangekit.plot.inputs import read_range_series
 
     _start(output)
+    true = _read_truth(truth)
     s = read_range_series(series)
     n = sum(int(np.isfinite(x.distance_m).sum()) for x in s)
-    plot_ranges(s, output, title=f"{series}: {len(s)} series, {n} ranges")
-    _done(output, f"{len(s)} series, {n} ranges")
+    by_key = truth_for(s, true)
+    if truth is not None and not by_key:
+        from rangekit.errors import IncompatibleInputError
+
+        raise IncompatibleInputError(
+            f"'{truth}' has no true distance for any series of '{series}' "
+            f"(series {', '.join(x.key for x in s)})"
+        )
+    plot_ranges(s, output, title=f"{series}: {len(s)} series, {n} ranges", truth=true)
+    what = f"{len(s)} series, {n} ranges"
+    if truth is not None:
+        err = np.concatenate([np.abs(x.distance_m - by_key[x.key]) for x in s if x.key in by_key])
+        sig = np.concatenate([x.sigma_m for x in s if x.key in by_key])
+        ok = np.isfinite(err)
+        if ok.any():
+            within = float(np.mean(err[ok] <= 2 * sig[ok]))
+            what += (
+                f"; against the truth: median |error| {1e3 * np.median(err[ok]):.1f} mm, "
+                f"{100 * within:.0f} % within 2 sigma"
+            )
+    _done(output, what)
+
+
+def _read_truth(text: str | None):
+    """--truth: a distance in metres, or {pair key: distance} from a synth sidecar."""
+    if text is None:
+        return None
+    try:
+        v = float(text)
+    except ValueError:
+        pass
+    else:
+        import math as _m
+
+        if not (_m.isfinite(v) and v >= 0):
+            raise click.BadParameter(
+                f"{text!r} must be a distance >= 0 in metres or a JSON file", param_hint="--truth"
+            )
+        return v
+    import json
+
+    from rangekit.errors import InputFileError, InvalidParameterError
+
+    try:
+        with open(text, encoding="utf-8") as f:
+            obj = json.load(f)
+    except OSError as e:
+        raise InputFileError(f"cannot read --truth '{text}': {e.strerror or e}") from None
+    except (UnicodeDecodeError, json.JSONDecodeError) as e:
+        raise InvalidParameterError(f"--truth '{text}' is not JSON: {e}") from None
+    pairs = obj.get("pairs") if isinstance(obj, dict) else None
+    try:
+        return {f"{int(p['a'])}-{int(p['b'])}": float(p["distance_m"]) for p in pairs}
+    except (TypeError, KeyError, ValueError):
+        raise InvalidParameterError(
+            f"--truth '{text}' has no \"pairs\" list of {{a, b, distance_m}} (a sidecar "
+            "of `rangekit synth beepbeep`)"
+        ) from None
 
 
 @plot.command("track")

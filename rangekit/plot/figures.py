@@ -129,6 +129,21 @@ def spectrogram_db(
     return t, f, 10.0 * np.log10(np.maximum(sxx, 1e-30))
 
 
+def _time_window(n: int, fs: float, t0_s: float | None, t1_s: float | None) -> tuple[int, int]:
+    """Samples ``[i0, i1)`` of an ``n``-sample channel inside ``[t0_s, t1_s]`` seconds."""
+    t0 = 0.0 if t0_s is None else V.in_range("t0_s", t0_s, 0.0, math.inf)
+    t1 = n / fs if t1_s is None else V.in_range("t1_s", t1_s, 0.0, math.inf)
+    if not t0 < t1:
+        raise InvalidParameterError(f"time window {t0:g}-{t1:g} s must have t0 < t1")
+    i0, i1 = int(math.floor(t0 * fs)), min(n, int(math.ceil(t1 * fs)))
+    if i1 - i0 < 16:
+        raise InvalidParameterError(
+            f"time window {t0:g}-{t1:g} s holds {max(0, i1 - i0)} samples of the "
+            f"{n / fs:g} s recording; a spectrogram needs at least 16"
+        )
+    return i0, i1
+
+
 def draw_spectrogram(
     ax,
     x: np.ndarray,
@@ -137,6 +152,10 @@ def draw_spectrogram(
     onsets: np.ndarray = (),
     n_fft: int | None = None,
     label: str = "onset",
+    t0_s: float | None = None,
+    t1_s: float | None = None,
+    fmin_hz: float | None = None,
+    fmax_hz: float | None = None,
 ) -> SpectrogramPlot:
     """Spectrogram of one channel with vertical lines at ``onsets``.
 
@@ -153,16 +172,29 @@ def draw_spectrogram(
         STFT window (:func:`spectrogram_db`).
     label : str
         Legend label of the onset lines.
+    t0_s, t1_s : float, optional
+        Time window to show, s from sample 0 (default the whole channel); the STFT is
+        computed on the window only (its frames are finer on a short window), times stay
+        those of the recording.
+    fmin_hz, fmax_hz : float, optional
+        Frequency range to show, Hz (default 0 to ``fs / 2``).
 
     Returns
     -------
     SpectrogramPlot
-        Artists: the image (gid ``"spectrogram"``) and one vertical line per onset (gid
-        ``"onset"``, x = the onset in seconds).
+        Artists: the image (gid ``"spectrogram"``) and one vertical line per onset inside
+        the window (gid ``"onset"``, x = the onset in seconds).
     """
-    t, f, p = spectrogram_db(x, fs=fs, n_fft=n_fft)
+    i0, i1 = _time_window(len(x), fs, t0_s, t1_s)
+    lo = 0.0 if fmin_hz is None else V.in_range("fmin_hz", fmin_hz, 0.0, fs / 2)
+    hi = fs / 2 if fmax_hz is None else V.in_range("fmax_hz", fmax_hz, 0.0, fs / 2)
+    if not lo < hi:
+        raise InvalidParameterError(f"frequency range {lo:g}-{hi:g} Hz must have fmin < fmax")
+    t, f, p = spectrogram_db(np.asarray(x)[i0:i1], fs=fs, n_fft=n_fft)
+    t = t + i0 / fs
     onsets_s = np.asarray(onsets, dtype=float).reshape(-1) / fs
-    dt = (t[1] - t[0]) if len(t) > 1 else len(x) / fs
+    onsets_s = onsets_s[(onsets_s >= i0 / fs) & (onsets_s <= i1 / fs)]
+    dt = (t[1] - t[0]) if len(t) > 1 else (i1 - i0) / fs
     df = f[1] - f[0]
     top = float(p.max())
     im = ax.imshow(
@@ -183,7 +215,8 @@ def draw_spectrogram(
         )
     if len(onsets_s):
         ax.legend(fontsize=8, loc="upper right")
-    ax.set_xlim(0.0, len(x) / fs)
+    ax.set_xlim(i0 / fs, i1 / fs)
+    ax.set_ylim(lo / 1e3, hi / 1e3)
     ax.set_xlabel("time (s)")
     ax.set_ylabel("frequency (kHz)")
     return SpectrogramPlot(t, f, p, onsets_s)
@@ -198,10 +231,18 @@ def plot_spectrogram(
     n_fft: int | None = None,
     title: str = "",
     label: str = "onset",
+    t0_s: float | None = None,
+    t1_s: float | None = None,
+    fmin_hz: float | None = None,
+    fmax_hz: float | None = None,
 ) -> SpectrogramPlot:
     """Write :func:`draw_spectrogram` of ``x`` to ``path`` (``.png``, ``.pdf``, ``.svg``)."""
+    window = {"t0_s": t0_s, "t1_s": t1_s, "fmin_hz": fmin_hz, "fmax_hz": fmax_hz}
+    draw_args = {"fs": fs, "onsets": onsets, "n_fft": n_fft, "label": label, **window}
+    if any(v is not None for v in window.values()):  # checked before the figure is made
+        _time_window(len(x), fs, t0_s, t1_s)
     fig, ax = new_figure(size=(9.0, 4.5))
-    out = draw_spectrogram(ax[0, 0], x, fs=fs, onsets=onsets, n_fft=n_fft, label=label)
+    out = draw_spectrogram(ax[0, 0], x, **draw_args)
     _finish(fig, ax[0, 0], path, title)
     return out
 
@@ -333,7 +374,28 @@ class RangesPlot:
     series: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]]
 
 
-def draw_ranges(ax, series: Sequence) -> RangesPlot:
+def truth_for(series: Sequence, truth: float | Mapping[str, float] | None) -> dict[str, float]:
+    """The true distance of each series key: one value for all, or a mapping by key
+    (keys without a value are left out).
+
+    Examples
+    --------
+    >>> from types import SimpleNamespace as S
+    >>> truth_for([S(key="0-1"), S(key="0-2")], {"0-1": 2.0})
+    {'0-1': 2.0}
+    >>> truth_for([S(key="0-1")], 1.5)
+    {'0-1': 1.5}
+    """
+    if truth is None:
+        return {}
+    if isinstance(truth, Mapping):
+        return {s.key: float(truth[s.key]) for s in series if s.key in truth}
+    return {s.key: float(truth) for s in series}
+
+
+def draw_ranges(
+    ax, series: Sequence, *, truth: float | Mapping[str, float] | None = None
+) -> RangesPlot:
     """Range time series with ±1 sigma and ±2 sigma bands, one line per series.
 
     Parameters
@@ -341,15 +403,19 @@ def draw_ranges(ax, series: Sequence) -> RangesPlot:
     ax : matplotlib Axes
     series : sequence of rangekit.plot.inputs.RangeSeries
         From :func:`rangekit.plot.inputs.read_range_series`. NaN distances are gaps.
+    truth : float or mapping of str to float, optional
+        The true distance (m), one for every series or one per series key
+        (:func:`truth_for`): drawn as a dashed line in the series' colour.
 
     Returns
     -------
     RangesPlot
         Artists per series key ``K``: the line (gid ``"range:K"``), the ±1 sigma band (gid
-        ``"band1:K"``, edges at ``distance_m ± sigma_m``) and the ±2 sigma band (gid
-        ``"band2:K"``).
+        ``"band1:K"``, edges at ``distance_m ± sigma_m``), the ±2 sigma band (gid
+        ``"band2:K"``) and the truth (gid ``"truth:K"``).
     """
     out = {}
+    true = truth_for(series, truth)
     for i, s in enumerate(series):
         color = f"C{i % 10}"
         label = s.key or "range"
@@ -359,6 +425,16 @@ def draw_ranges(ax, series: Sequence) -> RangesPlot:
                 t, d - k * sig, d + k * sig, color=color, alpha=alpha, lw=0, gid=f"band{k}:{s.key}"
             )
         ax.plot(t, d, "-", marker=".", ms=4, lw=1.0, color=color, gid=f"range:{s.key}", label=label)
+        if s.key in true:
+            first = s.key == next(iter(true))
+            ax.axhline(
+                true[s.key],
+                color=color,
+                ls="--",
+                lw=0.9,
+                gid=f"truth:{s.key}",
+                label="truth" if first else "_nolegend_",
+            )
         out[s.key] = (t, d, sig)
     ax.set_xlabel("time (s)")
     ax.set_ylabel("distance (m)")
@@ -367,10 +443,16 @@ def draw_ranges(ax, series: Sequence) -> RangesPlot:
     return RangesPlot(out)
 
 
-def plot_ranges(series: Sequence, path: str | os.PathLike, *, title: str = "") -> RangesPlot:
+def plot_ranges(
+    series: Sequence,
+    path: str | os.PathLike,
+    *,
+    title: str = "",
+    truth: float | Mapping[str, float] | None = None,
+) -> RangesPlot:
     """Write :func:`draw_ranges` of ``series`` to ``path``."""
     fig, ax = new_figure(size=(9.0, 4.5))
-    out = draw_ranges(ax[0, 0], series)
+    out = draw_ranges(ax[0, 0], series, truth=truth)
     _finish(fig, ax[0, 0], path, title)
     return out
 
