@@ -476,6 +476,9 @@ def _range_ekf(log, *, accel_psd, gate, cross_sign, smooth):
         "n_targets": int(trk.n_targets),
         "n_reinit": n_reinit,
         "n_skipped": int(trk.n_skipped),
+        # one per row: the probability that the target is near the filtered position
+        # rather than on another branch of the bank (its mirror image)
+        "p_branch": [float(p) for p in trk.p_branch.reshape(-1)],
     }
     if smooth:
         other = int(trk.same_line.size - trk.same_line.sum())

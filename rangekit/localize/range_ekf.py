@@ -365,7 +365,8 @@ def _run_single(c: _Ctx, e0: int, x0: np.ndarray, P0: np.ndarray):
     rows = [slice(ep.start[e], ep.start[e + 1]) for e in range(e0, ep.t_s.size)]
     acc_rows = [c.acc[r].copy() for r in rows]
     nis_rows = [c.nis[r].copy() for r in rows]
-    return xs, Ps, ll, acc_rows, nis_rows, (xs, Ps, xps, Pps, [None] * n), reinit
+    mixed = (xs, Ps, np.ones((n, d // 4)))
+    return xs, Ps, ll, acc_rows, nis_rows, (xs, Ps, xps, Pps, [None] * n), reinit, mixed
 
 
 def _h_rows(ep: _Epochs, rows: np.ndarray, rxy: np.ndarray):
@@ -516,6 +517,7 @@ def _run_bank(c: _Ctx, e0: int, hyps, step, *, n_keep: int, mirror: bool):
     best_idx = np.zeros(n, dtype=np.int64)
     reported = 0
     n_reinit = np.zeros(n, dtype=np.int64)
+    mix: list[tuple] = []
     for k in range(n):
         e = e0 + k
         dt = ep.t_s[e] - t
@@ -555,6 +557,7 @@ def _run_bank(c: _Ctx, e0: int, hyps, step, *, n_keep: int, mirror: bool):
                 rep = desc[0]
         reported = rep
         best_idx[k] = rep
+        mix.append(_mixture(kept, rep, n_t))
         bank = [_Hyp(cd[1], cd[2], cd[5], cd[0], i) for i, cd in enumerate(kept)]
         n_reinit[k] = kept[rep][10]
     # causal output: the reported hypothesis of each epoch; lineage of the final best
@@ -576,7 +579,34 @@ def _run_bank(c: _Ctx, e0: int, hyps, step, *, n_keep: int, mirror: bool):
         np.stack([r[3] for r in line]),
         [r[8] for r in line],  # the mirror map applied before epoch k's prediction, or None
     )
-    return xs, Ps, ll, acc_rows, nis_rows, smooth_in, n_reinit
+    mixed = tuple(np.stack([m[i] for m in mix]) for i in range(3))
+    return xs, Ps, ll, acc_rows, nis_rows, smooth_in, n_reinit, mixed
+
+
+def _mixture(kept, rep: int, n_t: int):
+    """Moments of the bank as a Gaussian mixture, and the branch probability.
+
+    Weights ``w_i ∝ exp(L_i)`` from the cumulative log-likelihoods (mirror priors
+    included). Returns the mixture mean and covariance ``Σ w_i (P_i + (x_i − x̄)(x_i −
+    x̄)ᵀ)`` and, per target, the weight of the hypotheses whose position of that target
+    lies within ``max(1 m, 3σ)`` of the reported hypothesis's: the probability that the
+    target is where the filter says and not on another branch (its mirror image).
+    """
+    cum = np.array([cd[0] for cd in kept])
+    w = np.exp(cum - cum.max())
+    w /= w.sum()
+    X = np.stack([cd[1] for cd in kept])
+    P = np.stack([cd[2] for cd in kept])
+    xbar = w @ X
+    D = X - xbar
+    Pbar = np.einsum("h,hij->ij", w, P) + np.einsum("h,hi,hj->ij", w, D, D)
+    pb = np.empty(n_t)
+    for j in range(n_t):
+        o = slice(4 * j, 4 * j + 2)
+        sig = math.sqrt(max(np.trace(P[rep][o, o]) / 2, 0.0))
+        near = np.hypot(*(X[:, o] - X[rep, o]).T) <= max(1.0, 3 * sig)
+        pb[j] = float(w[near].sum())
+    return xbar, 0.5 * (Pbar + Pbar.T), pb
 
 
 def _smooth_lineage(smooth_in, t_s: np.ndarray, n_t: int, q: np.ndarray):
@@ -645,6 +675,13 @@ class RangeTrack:
         ruled out), and ``P`` and ``P_smooth`` condition on different hypotheses.
     n_line_mirrors : int
         Mirror jumps along the smoothed lineage.
+    x_mix, P_mix : ndarray
+        The bank's hypotheses as a Gaussian mixture at each epoch (causal): weights from
+        the cumulative likelihoods, mean and covariance with the spread of the means.
+        While a target's mirror branch is alive the mixture covariance spans both.
+    p_branch : ndarray, shape (n, N)
+        Probability that each target lies near the reported position (within max(1 m,
+        3σ)) rather than on another branch of the bank (its mirror image).
     """
 
     t_s: np.ndarray
@@ -662,6 +699,18 @@ class RangeTrack:
     P_line: np.ndarray | None = None
     same_line: np.ndarray | None = None
     n_line_mirrors: int = 0
+    x_mix: np.ndarray | None = None
+    P_mix: np.ndarray | None = None
+    p_branch: np.ndarray | None = None
+
+    def position_mixture(self, target: int) -> np.ndarray:
+        """Positions (n, 2) of the bank's mixture mean (not one hypothesis)."""
+        return self.x_mix[:, self._check(target)]
+
+    def position_cov_mixture(self, target: int) -> np.ndarray:
+        """Position covariances (n, 2, 2) of the bank as a mixture (spread included)."""
+        s = self._check(target)
+        return self.P_mix[:, s, s]
 
     def _check(self, target: int) -> slice:
         if not 1 <= target <= self.n_targets:
@@ -795,10 +844,10 @@ def track_ranges(
         )
     ctx = _Ctx(ep, q, sign, thr, relock, sigma_v0)
     if engine == "compiled" and len(hyps) == 1 and not mirror:
-        xs, Ps, ll, acc_rows, nis_rows, smooth_in, n_reinit = _run_single(ctx, e0, *hyps[0])
+        xs, Ps, ll, acc_rows, nis_rows, smooth_in, n_reinit, mixed = _run_single(ctx, e0, *hyps[0])
     else:
         step = _step_compiled if engine == "compiled" else _step_numpy
-        xs, Ps, ll, acc_rows, nis_rows, smooth_in, n_reinit = _run_bank(
+        xs, Ps, ll, acc_rows, nis_rows, smooth_in, n_reinit, mixed = _run_bank(
             ctx, e0, hyps, step, n_keep=max(n_keep, 1), mirror=mirror
         )
     rejected = []
@@ -817,6 +866,7 @@ def track_ranges(
     return RangeTrack(
         ep.t_s[e0:], xs, Ps, xsm, Psm, len(hyps), ll, rejected, n_reinit, e0, n_t,
         smooth_in[0] if smooth else None, smooth_in[1] if smooth else None, same, n_jumps,
+        *mixed,
     )  # fmt: skip
 
 

@@ -75,3 +75,12 @@ def test_smoothed_variances_are_positive_and_below_the_same_branch(inputs, tmp_p
         assert np.all(vx > 0) and np.all(vy > 0) and np.all(cxy**2 < vx * vy)
         assert js["n_epochs_other_branch"] >= 0
         assert "smoothed along the final best branch" in r.stderr
+
+
+def test_range_ekf_json_reports_branch_probabilities(inputs, tmp_path):
+    out = tmp_path / "b.json"
+    ok(run(["track", "--filter", "range-ekf", inputs["walk1"], "--format", "json", "-o", out]))
+    js = json.loads(out.read_text())
+    p = np.array(js["p_branch"])
+    assert p.size == len(js["rows"]) and np.all((p >= 0) & (p <= 1 + 1e-12))
+    assert np.all(p[0::2] > 0.999)  # target 1 has a fix: one branch
