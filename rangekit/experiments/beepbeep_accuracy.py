@@ -6,6 +6,12 @@ one, at hand height 0.9-1.5 m), random recording starts (0-0.1 s) and clock erro
 (+-``ppm`` ppm), renders the exchange at ``snr_db`` and ranges it with ``detector``.
 A trial fails when detection fails (any DetectionError) or the error exceeds 1 m.
 
+Oracle rows: every device's speaker-to-microphone distance is ``self_distance_m``; by
+default the ranging is told that same value, i.e. the simulator's true device geometry,
+and every row says so (``row["oracle"] == "true self-distance"``). Pass
+``assumed_self_distance_m`` (what a user would read from a phone's specification) to
+range with another value: those rows have ``row["oracle"] is None``.
+
 Examples
 --------
 >>> rows = run_trials(n_trials=2, snr_db=20.0, rng=0)
@@ -92,9 +98,16 @@ def run_trials(
     self_distance_m: float = 0.1,
     noise: str = "white",
     ppm: float = 50.0,
+    assumed_self_distance_m: float | None = None,
     rng=None,
 ) -> list[dict]:
-    """Run seeded trials; one row per pair per trial with the error in metres."""
+    """Run seeded trials; one row per pair per trial with the error in metres.
+
+    ``assumed_self_distance_m`` is the self-distance the ranging is told (default: the
+    true ``self_distance_m``, which makes every row an oracle row; module docstring).
+    """
+    oracle = "true self-distance" if assumed_self_distance_m is None else None
+    told = self_distance_m if assumed_self_distance_m is None else assumed_self_distance_m
     rng = np.random.default_rng(rng)
     beep = Beep() if beep is None else beep
     rows = []
@@ -120,9 +133,7 @@ def run_trials(
             for i, (x, fs) in enumerate(zip(sim.recordings, sim.fs, strict=True))
         ]
         try:
-            res = range_channels(
-                chans, beep=beep, detector=detector, self_distance_m=self_distance_m
-            )
+            res = range_channels(chans, beep=beep, detector=detector, self_distance_m=told)
             est = {(r.a, r.b): (r.distance_m, r.sigma_m) for r in res.ranges}
         except DetectionError:
             est = {}
@@ -143,6 +154,7 @@ def run_trials(
                         "sigma_m": sig,
                         "error_m": err,
                         "failed": bool(not np.isfinite(err) or abs(err) > FAIL_M),
+                        "oracle": oracle,
                     }
                 )
     return rows
@@ -152,7 +164,9 @@ def summarize(rows: Sequence[dict]) -> dict:
     """Median, 90th percentile and max of |error| over the non-failed rows; failures; coverage.
 
     ``coverage_2sigma`` is the fraction of non-failed rows with |error| <= 2 sigma
-    (0.954 for an honest Gaussian uncertainty).
+    (0.954 for an honest Gaussian uncertainty); ``median_z`` the median of |error| / sigma
+    (0.674 for an honest Gaussian uncertainty: smaller means sigma is too cautious, larger
+    too confident).
     """
     ok = [r for r in rows if not r["failed"]]
     e = np.abs([r["error_m"] for r in ok]) if ok else np.array([np.nan])
@@ -164,4 +178,5 @@ def summarize(rows: Sequence[dict]) -> dict:
         "p90_m": float(np.percentile(e, 90)),
         "max_m": float(np.max(e)),
         "coverage_2sigma": float(np.mean(e <= 2 * s)) if ok else math.nan,
+        "median_z": float(np.median(e / s)) if ok else math.nan,
     }
