@@ -19,18 +19,26 @@ from rangekit.localize.anchor_ekf import multilaterate_latest, track_anchors
 from rangekit.sim.rigs import simulate_rig_run, square_rig
 
 
-def run_seed(seed: int, duration_s: float = 120.0) -> dict:
+def run_seed(
+    seed: int,
+    duration_s: float = 120.0,
+    *,
+    range_rate_hz: float = 7.8,
+    odometry_rate_hz: float = 20.0,
+    robust: str = "huber",
+) -> dict:
     """The acceptance numbers of one seeded run (m, s)."""
-    run = simulate_rig_run(square_rig(), duration_s=duration_s, rng=seed)
+    run = simulate_rig_run(square_rig(), duration_s=duration_s, range_rate_hz=range_rate_hz,
+                           odometry_rate_hz=odometry_rate_hz, rng=seed)  # fmt: skip
     p0 = run.truth_pose([run.log.odometry.t_s[0]])[0]
-    trk = track_anchors(run.log, run.rig, initial_pose=p0, smooth=True)
+    trk = track_anchors(run.log, run.rig, initial_pose=p0, smooth=True, robust=robust)
     rms = lambda e: float(np.sqrt(np.mean(e**2)))  # noqa: E731
     e = np.hypot(*(trk.position() - run.truth_xy(trk.t_s)).T)
     es = np.hypot(*(trk.position(smoothed=True) - run.truth_xy(trk.t_s)).T)
     tm, xm = multilaterate_latest(run.log, run.rig)
     ok = np.isfinite(xm[:, 0])
     em = np.hypot(*(xm[ok] - run.truth_xy(tm[ok])).T)
-    t0 = track_anchors(run.log, run.rig)
+    t0 = track_anchors(run.log, run.rig, robust=robust)
     e0 = np.hypot(*(t0.position() - run.truth_xy(t0.t_s)).T)
     bad = np.flatnonzero(e0 >= 0.3)
     conv = float(t0.t_s[bad[-1] + 1] if bad.size else t0.t_s[0])
@@ -49,12 +57,16 @@ def main(argv: list[str] | None = None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", type=int, default=8)
     ap.add_argument("--duration", type=float, default=120.0)
+    ap.add_argument("--rate", type=float, default=7.8, help="ranging rate, Hz")
+    ap.add_argument("--odometry-rate", type=float, default=20.0, help="Hz")
+    ap.add_argument("--robust", default="huber", choices=["huber", "student-t", "none"])
     args = ap.parse_args(argv)
     cols = ("rmse", "rmse_ml", "rmse_smooth", "rmse_no_pose", "bias_err_max", "converged_s",
             "downweighted")  # fmt: skip
     print("seed " + " ".join(f"{c:>13}" for c in cols))
     for s in range(args.seeds):
-        r = run_seed(s, args.duration)
+        r = run_seed(s, args.duration, range_rate_hz=args.rate,
+                     odometry_rate_hz=args.odometry_rate, robust=args.robust)  # fmt: skip
         print(f"{s:4d} " + " ".join(f"{r[c]:13.3f}" for c in cols))
 
 
