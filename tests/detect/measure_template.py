@@ -104,8 +104,9 @@ def _room_rirs(rng, fs: float, n: int):
     return out
 
 
-def match(n: int = 40) -> None:
-    """poor_match / low_snr / no arrival on right and wrong templates."""
+def match(n: int = 40, snrs: tuple[float, ...] = (10.0, 20.0, 40.0)) -> None:
+    """poor_match / low_snr / no arrival on right and wrong templates (``match 25,30,35``:
+    other SNRs, dB)."""
     from probecorpus import dechorate as dech
     from scipy.signal import fftconvolve
 
@@ -134,9 +135,9 @@ def match(n: int = 40) -> None:
         "wrong: 17-20k 0.5 s vs 0.1 s": (s1720l.samples, s1720, rirs, fs),
         "wrong: 17-20k vs 20-20k": (s1720.samples, sfull, rirs, fs),
     }
-    for snr_db in (10.0, 20.0, 40.0):
+    for snr_db in snrs:
         for name, (played, tmpl, rr, f) in cases.items():
-            pm = ls = none = 0
+            pm = ls = lsa = none = 0
             for h in rr:
                 y = fftconvolve(played, h)
                 y = np.concatenate([np.zeros(int(0.05 * f)), y, np.zeros(int(0.05 * f))])
@@ -149,10 +150,12 @@ def match(n: int = 40) -> None:
                 names = a.flag_names(0)
                 pm += "poor_match" in names
                 ls += "low_snr" in names and "poor_match" not in names
+                lsa += "low_snr" in names
             k = len(rr)
             print(
                 f"SNR {snr_db:.0f} dB {name:30s} poor_match {100 * pm / k:3.0f} %, "
-                f"low_snr only {100 * ls / k:3.0f} %, no arrival {100 * none / k:3.0f} %",
+                f"low_snr only {100 * ls / k:3.0f} %, no arrival {100 * none / k:3.0f} % "
+                f"(low_snr at all {100 * lsa / k:3.0f} %)",
                 flush=True,
             )
 
@@ -199,5 +202,8 @@ def speed(repeats: int = 5) -> None:
 
 if __name__ == "__main__":
     what = sys.argv[1] if len(sys.argv) > 1 else "weighting"
-    {"weighting": weighting, "dechorate": dechorate, "match": match, "rooms": rooms,
-     "speed": speed}[what]()  # fmt: skip
+    if what == "match" and len(sys.argv) > 2:
+        match(snrs=tuple(float(v) for v in sys.argv[2].split(",")))
+    else:
+        {"weighting": weighting, "dechorate": dechorate, "match": match, "rooms": rooms,
+         "speed": speed}[what]()  # fmt: skip

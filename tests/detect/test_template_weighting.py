@@ -49,13 +49,13 @@ def _far_errors(p, weighting, *, lf: bool, n: int = 20, seed: int = 1):
 
 def test_far_play_in_low_frequency_noise_needs_the_weighting():
     """20 Hz-20 kHz, 0.1 s: the plain matched filter finds the far play in 20 % of the
-    takes (measured, 20 takes), the ML-weighted one in 100 %."""
+    takes (measured, 20 takes), the ML-weighted one in 100 % (RMS 0.044 samples)."""
     p = linear_sweep(20.0, 20000.0, 0.1)
     plain = _far_errors(p, "none", lf=True)
     ml = _far_errors(p, "ml", lf=True)
     assert np.mean(plain < 2) <= 0.4  # measured 0.20
     assert np.mean(ml < 2) == 1.0  # measured 1.00
-    assert np.sqrt(np.mean(ml**2)) < 0.2  # measured 0.093 samples
+    assert np.sqrt(np.mean(ml**2)) < 0.1  # measured 0.044 samples (envelope timing: 0.093)
 
 
 def test_weighting_costs_nothing_in_white_noise():
