@@ -45,6 +45,7 @@ from rangekit.detect.condition import (
     clip_mask,
     local_floor,
     out_of_band_ratio,
+    percentile,
 )
 from rangekit.detect.refine import (
     EdgeFit,
@@ -639,7 +640,7 @@ def _combine(
     s0 = math.hypot(s0, MODEL_SIGMA * scale)
     row = np.full(k_b, np.nan)
     row[ks[ok]] = on[ok]
-    snr = float(np.median([fits[k].snr_db for k in ks[ok]]))
+    snr = _median([fits[k].snr_db for k in ks[ok]])
     flags = 0
     if ok.sum() < k_b:
         flags |= flag_bit("inconsistent_bursts")
@@ -649,6 +650,14 @@ def _combine(
         flags |= flag_bit("low_snr")
     strength = float(sum(fits[k].f_stat for k in ks[ok]))
     return t0, s0, snr, ok.sum() / k_b, row, flags, strength
+
+
+def _median(vals: list[float]) -> float:
+    """``numpy.median`` of a few floats (the same arithmetic; ``numpy.median`` imports
+    ``numpy.ma`` on first use)."""
+    v = sorted(vals)
+    m = len(v) // 2
+    return float(v[m]) if len(v) % 2 else float((v[m - 1] + v[m]) / 2.0)
 
 
 def _resolve_aliases(rows: list[tuple], *, tol: float) -> list[tuple]:
@@ -796,7 +805,7 @@ def detect_changepoint(
             anchors.append(a)
     cond = _conditioner(x, fs=fs, beep=beep, condition=condition, compiled=compiled)
     live = floor[floor > 1e-12 * float(floor.max())] if len(floor) and floor.max() > 0 else floor
-    quiet = float(np.percentile(live, 10.0)) if len(live) else 0.0
+    quiet = float(percentile(live, 10.0)) if len(live) else 0.0
     oob = _out_of_band(x, cond) if condition else False
     rows = []
     look = int(round(LOOKBACK_S * fs))
@@ -886,4 +895,12 @@ def _out_of_band(x: np.ndarray, cond: _Conditioner) -> bool:
         return False
     n = min(len(x), 1 << 16)
     i0 = (len(x) - n) // 2
-    return out_of_band_ratio(x[i0 : i0 + n], cond.taps) > OOB_RATIO
+    xs = np.asarray(x[i0 : i0 + n], dtype=np.float64)
+    half = (len(cond.taps) - 1) // 2
+    if cond.compiled:
+        y = _edge_kernels.call("fir", xs, cond._taps_reversed, half, 0, n)
+    else:
+        # Direct convolution (what ``bandlimit`` does for short stretches; for this one it
+        # would take scipy's FFT convolution and import scipy.signal, ~0.7-1 s).
+        y = np.convolve(xs, cond.taps)[half : half + n]
+    return out_of_band_ratio(xs, cond.taps, y) > OOB_RATIO

@@ -133,7 +133,7 @@ def test_first_path_wins_over_a_stronger_reflection():
 def test_detect_dispatch_and_errors():
     x = np.zeros(10000)
     assert len(detect(x, fs=FS, detector="xcorr")) == 0
-    with pytest.raises(InvalidParameterError, match="method=.nope. must be one of"):
+    with pytest.raises(InvalidParameterError, match=r"method=.nope. must be one of"):
         detect(x, fs=FS, detector="nope")
     with pytest.raises(IncompatibleInputError, match="too low"):
         detect_changepoint(x, fs=16000.0)
@@ -141,3 +141,63 @@ def test_detect_dispatch_and_errors():
         detect_changepoint(np.zeros((10, 2)), fs=FS)
     with pytest.raises(InvalidParameterError, match="NaN"):
         detect_changepoint(np.full(100, np.nan), fs=FS)
+
+
+# --- start-up: the detector's helpers without scipy.signal, numpy.ma or numba (issue 20) ----
+
+
+@pytest.mark.parametrize("fs", [8000.0, 44100.0, 48000.0, 192000.0])
+@pytest.mark.parametrize(
+    "band", [(14000.0, 18000.0), (0.0, 3000.0), (300.0, 3500.0), (3000.0, 1e9), (0.0, 1e9)]
+)
+def test_bandpass_taps_equal_scipy_firwin(fs, band):
+    """The numpy Kaiser window method gives scipy.signal.firwin's taps to 2.3e-16."""
+    from scipy.signal import firwin, kaiser_beta
+
+    from rangekit.detect import condition as C
+
+    lo, hi = band[0], min(band[1], 0.45 * fs)
+    if lo >= hi:
+        pytest.skip("band beyond Nyquist")
+    h = C.bandpass_taps(fs, lo, hi)
+    beta = kaiser_beta(C.DEFAULT_ATTEN_DB)
+    assert C._kaiser_beta(C.DEFAULT_ATTEN_DB) == beta
+    for n, cut, pz in [(len(h), [0.1 * fs, 0.3 * fs], False), (101, [0.2 * fs], True),
+                       (301, [0.05 * fs], False), (9, [0.1 * fs, 0.2 * fs], True)]:  # fmt: skip
+        ref = firwin(n, cut, window=("kaiser", beta), fs=fs, pass_zero=pz)
+        got = C._firwin_kaiser(n, cut, beta, fs, pass_zero=pz)
+        assert np.max(np.abs(got - ref)) <= 4e-16 * np.max(np.abs(ref))
+
+
+@pytest.mark.parametrize("n", [1, 2, 3, 8, 345, 1000])
+@pytest.mark.parametrize("q", [0.0, 10.0, 20.0, 50.0, 99.9, 100.0])
+def test_percentile_equals_numpy(n, q):
+    from rangekit.detect.condition import percentile
+
+    rng = np.random.default_rng(n)
+    a = rng.exponential(size=n)
+    assert percentile(a, q) == np.percentile(a, q)
+    b = rng.exponential(size=(5, n))
+    np.testing.assert_array_equal(percentile(b, q, axis=1), np.percentile(b, q, axis=1))
+
+
+def test_a_short_recording_imports_neither_scipy_signal_nor_numba(tmp_path):
+    """Detecting on one exchange (the numpy path) loads no heavy module."""
+    import subprocess
+    import sys
+
+    code = (
+        "import sys, numpy as np\n"
+        "from rangekit.detect import detect_changepoint\n"
+        "from rangekit.sim import render_beepbeep, pair_devices\n"
+        "sim = render_beepbeep(pair_devices(2.0), snr_db=20, rng=1)\n"
+        "before = set(sys.modules)\n"
+        "arr = detect_changepoint(sim.recordings[0], fs=44100.0)\n"
+        "assert len(arr) == 2, arr\n"
+        "new = set(sys.modules) - before\n"
+        "bad = sorted(m for m in new if m.split('.')[0] == 'numba' or m.startswith("
+        "('scipy.signal', 'scipy.stats', 'numpy.ma')))\n"
+        "print(' '.join(bad))\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == ""
