@@ -7,10 +7,11 @@ Synthetic linear sweeps (17-20 kHz and 20 Hz-20 kHz, 0.1 s and 1 s) in a shoebox
 * one-way, with an unknown latency in 1-20 ms from the trigger to the emission.
 
 Each is calibrated from three recordings at 1 m (offset only, speed of sound from the
-temperature) and then ranges placements over 0.1-5 m. Bound (the issue's): median absolute
-error <= 1 cm and 90th percentile <= 3 cm over all sweeps. Measured (seed 8, 24 ranges
-each): two-way median 0.11 mm, p90 1.07 mm, worst 1.62 mm; one-way median 0.11 mm, p90
-1.46 mm, worst 3.29 mm.
+temperature) and then ranges placements over 0.1-5 m. Issue 8 asked for a median absolute
+error <= 1 cm and a 90th percentile <= 3 cm over all sweeps; the bounds below sit within
+about 2x of what is measured (issue 21), so a 3x regression fails. Measured 2026-12-01
+(seed 8, 24 ranges each): two-way median 0.119 mm, p90 0.748 mm, worst 2.27 mm; one-way
+median 0.108 mm, p90 1.46 mm, worst 3.29 mm.
 """
 
 from __future__ import annotations
@@ -121,12 +122,20 @@ def _errors(scheme, rng):
     return np.abs(np.array(errs))
 
 
+MM = 1e-3
+#: scheme -> bounds (median, p90, worst) in mm; measured: two-way 0.119, 0.748, 2.27;
+#: one-way 0.108, 1.46, 3.29.
+BOUNDS_MM = {"beepbeep": (0.25, 1.5, 4.5), "oneway": (0.22, 2.9, 6.6)}
+
+
 @pytest.mark.parametrize("scheme", ["beepbeep", "oneway"])
 def test_sweeps_in_rooms_after_one_distance_calibration(scheme):
     err = _errors(scheme, np.random.default_rng(8))
     assert len(err) == len(SWEEPS) * len(TEST_DISTANCES_M)
-    assert np.median(err) <= 0.01, err
-    assert np.percentile(err, 90) <= 0.03, err
+    median, p90, worst = BOUNDS_MM[scheme]
+    assert np.median(err) <= median * MM, err
+    assert np.percentile(err, 90) <= p90 * MM, err
+    assert np.max(err) <= worst * MM, err
 
 
 def test_without_calibration_the_offset_is_there():
@@ -135,4 +144,5 @@ def test_without_calibration_the_offset_is_there():
     probe = linear_sweep(17000.0, 20000.0, 0.1)
     self_m = np.array([0.15, 0.19])
     r, true = _two_way(probe, _pair(rng, 2.0, self_m), rng)
-    assert abs((true - r.distance_m) - self_m.mean()) < 0.01
+    # measured: off by 0.1703 m against a mean self-distance of 0.17 m (0.28 mm apart)
+    assert abs((true - r.distance_m) - self_m.mean()) < 0.6 * MM
