@@ -162,8 +162,8 @@ def test_sigma_is_never_zero_at_very_high_snr(rirs):
 
 def test_a_common_noise_spectrum_keeps_the_dispersion_bias_common(rirs):
     """The weighting shifts the onset through the loudspeaker's dispersion: the same
-    arrival with and without a low-frequency shelf differs by 0.15-1.1 samples when each
-    is weighted by its own noise spectrum (measured), by <= 0.05 samples with one
+    arrival with and without a low-frequency shelf differs by up to 2.4 samples when each
+    is weighted by its own noise spectrum (measured), by <= 0.084 samples with one
     spectrum for both (``common_spectra``), as two devices of an exchange should be."""
     from rangekit.detect.matched import common_spectra, welch_spectra
 
@@ -179,5 +179,5 @@ def test_a_common_noise_spectrum_keeps_the_dispersion_bias_common(rirs):
         b2 = detect_template(xl, fs=fs, probe=p, expected=1, spectra=sp).onset[0]
         own.append(b - a)
         common.append(b2 - a2)
-    assert np.max(np.abs(own)) > 0.5  # measured 1.1 samples
-    assert np.max(np.abs(common)) < 0.1  # measured 0.05 samples
+    assert np.max(np.abs(own)) > 0.5  # measured 2.4 samples (envelope timing: 1.1)
+    assert np.max(np.abs(common)) < 0.15  # measured 0.084 samples (envelope: 0.053)

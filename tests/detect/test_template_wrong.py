@@ -8,10 +8,11 @@ skirt near 17 kHz: a match 16-17 dB over the noise, below twice the detection th
 right template would put each sub-band only ~2 deviations up (below the 4 it needs to
 test one), so a weak wrong match and a weak right one through a transducer with the
 loudspeaker ripple the test allows (-26 dB) are the same to it
-(``docs/theory/probes.md``, poor_match). Measured (``measure_template.py match``, 40
-pyroomacoustics rooms): beeps vs a 17-20 kHz template carry ``low_snr`` (or give no
-arrival) at every SNR from 10 to 40 dB; ``poor_match`` from 35 dB up (41 % at 35 dB,
-82 % at 40 dB). ``--strict`` refuses either flag (exit 10).
+(``docs/theory/probes.md``, poor_match). Measured (``measure_template.py match`` and
+``match 25,30,35``, 40 pyroomacoustics rooms): beeps vs a 17-20 kHz template are flagged
+or give no arrival at every SNR from 10 to 40 dB, never unflagged (``low_snr`` on 82-98 %
+at 25-35 dB); ``poor_match`` from 35 dB up (38 % at 35 dB, 80 % at 40 dB). ``--strict``
+refuses either flag (exit 10).
 """
 
 from __future__ import annotations
