@@ -3,20 +3,35 @@
 Every ``rangekit experiment NAME`` returns an :class:`ExperimentReport`. Its JSON form is
 an object with ``experiment``, ``title``, ``params`` and ``rows``; each row has at least
 ``metric``, ``condition``, ``paper`` (the paper's number, or null where the paper gives
-none) and ``measured`` (see ``docs/formats.md``).
+none) and ``measured`` (see ``docs/formats.md``), and ``unit``, ``note`` and ``oracle``.
+
+Oracle rows
+-----------
+A row is an *oracle* row when the estimator behind it was given part of the simulator's
+truth that a user would not have (a true start position, a true anchor, a true device
+geometry). Its ``oracle`` is a short description of that truth (``"true start
+position"``), and its metric name says so: it ends with ``(oracle ...)``
+(:meth:`ExperimentReport.add` refuses an oracle row whose metric does not). Every other
+row has ``"oracle": null``. Evaluating an estimate against the truth (an error, a
+coverage) does not make a row an oracle row; feeding the truth to the estimator does.
 
 Examples
 --------
 >>> rep = ExperimentReport("demo", "A demo", {"trials": 2, "seed": 1})
 >>> rep.add("median error", "target 2, 0.4 m/s", 0.85, 0.5312, unit="m")
 >>> rep.add("NEES", "target 2, 0.4 m/s", None, 3.9)
->>> rep.to_json()["rows"][0]["paper"]
-0.85
+>>> rep.add("median error (oracle start)", "target 2, 0.4 m/s", None, 0.41, unit="m",
+...         oracle="true start position")
+>>> rep.to_json()["rows"][0]["paper"], rep.to_json()["rows"][0]["oracle"]
+(0.85, None)
+>>> [r.metric for r in rep.oracle_rows()]
+['median error (oracle start)']
 >>> print(rep.to_table())
 # A demo (trials=2, seed=1)
-metric        condition          paper  measured  unit
-median error  target 2, 0.4 m/s  0.85   0.5312    m
-NEES          target 2, 0.4 m/s  -      3.9
+metric                       condition          paper  measured  unit
+median error                 target 2, 0.4 m/s  0.85   0.5312    m
+NEES                         target 2, 0.4 m/s  -      3.9
+median error (oracle start)  target 2, 0.4 m/s  -      0.41      m
 """
 
 from __future__ import annotations
@@ -46,6 +61,9 @@ class ExperimentRow:
         Unit of both numbers ("" for dimensionless).
     note : str
         Anything a reader needs to compare the two (how the paper's number was read).
+    oracle : str
+        The simulator truth the estimator was given ("" if none; module docstring). An
+        oracle row's metric ends with ``(oracle ...)``.
     """
 
     metric: str
@@ -54,6 +72,7 @@ class ExperimentRow:
     measured: float
     unit: str = ""
     note: str = ""
+    oracle: str = ""
 
     def to_json(self) -> dict:
         m = float(self.measured)
@@ -64,6 +83,7 @@ class ExperimentRow:
             "measured": None if math.isnan(m) else m,
             "unit": self.unit,
             "note": self.note,
+            "oracle": self.oracle or None,
         }
 
 
@@ -102,9 +122,29 @@ class ExperimentReport:
         *,
         unit: str = "",
         note: str = "",
+        oracle: str = "",
     ) -> None:
-        """Append one :class:`ExperimentRow`."""
-        self.rows.append(ExperimentRow(metric, condition, paper, float(measured), unit, note))
+        """Append one :class:`ExperimentRow`.
+
+        Raises
+        ------
+        ValueError
+            ``oracle`` is given but the metric does not end with ``(oracle ...)``, or the
+            metric says oracle and ``oracle`` is empty.
+        """
+        named = metric.rstrip().endswith(")") and "(oracle" in metric
+        if bool(oracle) != named:
+            raise ValueError(
+                f"metric={metric!r}, oracle={oracle!r}: an oracle row's metric ends with "
+                "'(oracle ...)', and only an oracle row's does"
+            )
+        self.rows.append(
+            ExperimentRow(metric, condition, paper, float(measured), unit, note, oracle)
+        )
+
+    def oracle_rows(self) -> list[ExperimentRow]:
+        """The rows whose estimator was given simulator truth (module docstring)."""
+        return [r for r in self.rows if r.oracle]
 
     def find(self, metric: str, condition: str) -> ExperimentRow:
         """The row with this metric and condition (KeyError if there is none)."""
