@@ -20,6 +20,10 @@ rangekit is faster (or smaller) than the peer, whatever the unit:
 The ratio is computed from ``peer_value`` unless given (e.g. from medians, or when the
 peer's number is in another unit); a unit outside these lists needs an explicit ratio.
 
+A number that was not measured in the run (a paper's timing, another machine's) is
+context, not a peer: it goes in ``note`` ("context: Kim & Kim 2013 report 550 us/step"),
+and :func:`row` refuses a peer named "(reported)" or "(paper)".
+
 Run nothing here: this module is imported by the benchmarks (``from _report import row``;
 the benchmark's own folder is first on ``sys.path``).
 """
@@ -96,7 +100,8 @@ def row(
     unit : str
         Its unit, e.g. ``"x-realtime"``, ``"us/step"``, ``"s"``, ``"MB"``, ``"updates/s"``.
     peer : str, optional
-        The peer it is compared with (measured in the same run, or "(reported)").
+        The peer it is compared with, measured in the same run (never a reported number:
+        that goes in ``note``).
     peer_value : float, optional
         The peer's number in the same unit.
     ratio : float, optional
@@ -114,7 +119,7 @@ def row(
     ------
     ValueError
         Empty ``bench``, ``metric`` or ``unit``; a text with a line break; a ratio to
-        compute for a unit of unknown direction.
+        compute for a unit of unknown direction; a peer named "(reported)" or "(paper)".
     TypeError
         A number that is not a real number.
     """
@@ -125,6 +130,11 @@ def row(
     for name, text in texts.items():
         if text is not None and ("\n" in str(text) or "\r" in str(text)):
             raise ValueError(f"{name}={text!r} must be one line")
+    if peer is not None and any(w in peer.lower() for w in ("(reported)", "(paper)")):
+        raise ValueError(
+            f"peer={peer!r}: a peer is measured in the same run; a reported number is "
+            "context and goes in note"
+        )
     v = _number("value", value)
     pv = _number("peer_value", peer_value)
     r = _number("ratio", ratio)

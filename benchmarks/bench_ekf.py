@@ -1,4 +1,4 @@
-"""Benchmark one predict+update of the range-tracking EKF (Jiang 2018 §4.4) against FilterPy.
+"""Benchmark one predict+update of the range-tracking EKF (Jiang 2018 §4.4) against peers.
 
 Model: Jiang 2018's two-target case, state ``[x1, y1, vx1, vy1, x2, y2, vx2, vy2]`` (8
 states), constant velocity with white acceleration ``accel_psd`` = 0.05 m²/s³ per target.
@@ -22,6 +22,12 @@ Rows (one table, us per epoch = one predict + one update of the 4 rows):
 * ``_step_numpy``: rangekit's plain-numpy reference engine (one hypothesis);
 * ``track_ranges``: the full public tracker (defaults: 8 initial hypotheses, mirror
   splitting, ``n_keep=8``) on the first 500 epochs (``--quick``: 200), per epoch;
+* a plain numpy EKF (:func:`numpy_run`, this file): per epoch ``F, Q = cv_transition(dt,
+  2, q)``, ``x = F x``, ``P = F P F^T + Q``, ``h``/``H`` from ``_h_rows`` and ``R`` from
+  ``measurement_covariance`` at the prior, ``S = H P H^T + R``, ``K = P H^T S^-1``
+  (``numpy.linalg.solve``), Joseph-form ``P``; no gate; 2000 epochs (``--quick``: 1000).
+  The straightforward implementation of the same update a user would write: the peer
+  that is always there;
 * FilterPy ``ExtendedKalmanFilter(dim_x=8, dim_z=4)`` on the same data: per epoch ``F, Q =
   cv_transition(dt, 2, q)``, ``predict()``, ``update(z, HJacobian, Hx, R=R)`` with ``R`` from
   ``measurement_covariance`` at the prior and ``H``/``h`` from ``_h_rows`` (the model of
@@ -29,14 +35,17 @@ Rows (one table, us per epoch = one predict + one update of the 4 rows):
   row below it times only those model callbacks (plain numpy, rangekit's helpers) at the
   same priors: the rest is FilterPy's own predict/update.
 
-Ratios: ``vs FilterPy`` = t_FilterPy / t (above 1: faster than FilterPy); ``vs Kim&Kim`` =
-550 us / t, against the 0.55 ms per step that Kim & Kim report for their C++ EKF. Issue 4
-acceptance: ``vs Kim&Kim`` >= 20 for ``run_range_ekf``; design target <= 2 us/step.
+Ratios, all against peers timed in this run (issue 21): ``vs numpy`` = t_numpy / t and
+``vs FilterPy`` = t_FilterPy / t (above 1: faster than the peer). Acceptance:
+``run_range_ekf`` >= :data:`ACCEPT_X` times the plain numpy EKF; design target <= 2 us/step.
+Kim & Kim 2013 report 0.55 ms per step for their C++ EKF (a 2.66 GHz laptop, 2013): that
+number is printed as context in a note, not used as a peer (another machine, another
+language, another year).
 
-Check: the compiled loop without gate (``thr = inf``) against FilterPy (or, without
-FilterPy, the numpy engine) on the first 200 epochs, state means to 1e-6 (both are the
-same float64 algebra, Joseph form; they differ only by rounding: Cholesky solve vs
-``inv(S)``). Exits 1 if they disagree.
+Check: the compiled loop without gate (``thr = inf``) against the plain numpy EKF and
+against FilterPy (or, without FilterPy, the numpy engine) on the first 200 epochs, state
+means to 1e-6 (the same float64 algebra, Joseph form; they differ only by rounding:
+Cholesky solve vs ``solve``/``inv(S)``). Exits 1 if they disagree.
 
 Run: ``python benchmarks/bench_ekf.py [--quick] [--repeats N]``
 """
@@ -78,8 +87,8 @@ FOLLOW_M = 1.2
 GATE = chi2_gate(0.999, 1)  # 10.83
 RELOCK = 3
 SIGMA_V0 = 1.0
-KIM_US = 550.0  # Kim & Kim, C++ EKF, per step
-ACCEPT_X = 20.0  # issue 4: >= 20x faster than Kim & Kim
+KIM_US = 550.0  # Kim & Kim, C++ EKF, per step, as reported: context only (a note)
+ACCEPT_X = 30.0  # >= 30x the plain numpy EKF of the same run (measured 52-59x, 2 shared cores)
 DESIGN_US = 2.0  # ARCHITECTURE: <= 2 us/step
 N_CHECK = 200
 TOL = 1e-6  # m or m/s, on the state means
@@ -189,6 +198,34 @@ def python_steps(step, ctx, x0, P0, n: int) -> np.ndarray:
     return xs
 
 
+# --------------------------------------------------------------------------- numpy peer
+def numpy_run(ep, x0, P0, q, n: int) -> np.ndarray:
+    """A plain numpy EKF over n epochs of the same model (module docstring); returns xs."""
+    x, P = x0.copy(), P0.copy()
+    eye = np.eye(x.size)
+    xs = np.empty((n, x.size))
+    t = ep.t_s[0]
+    for e in range(n):
+        F, Q = cv_transition(ep.t_s[e] - t, 2, q)
+        t = ep.t_s[e]
+        x = F @ x
+        P = F @ P @ F.T + Q
+        rows = np.arange(ep.start[e], ep.start[e + 1])
+        zh, H = _h_rows(ep, rows, ep.robot_xy[e])(x)
+        R = measurement_covariance(
+            ep.kind[rows], ep.b[rows], ep.robot_xy[e], ep.robot_P[e], x, ep.var[rows],
+            ep.cov[rows],
+        )  # fmt: skip
+        S = H @ P @ H.T + R
+        K = np.linalg.solve(S, H @ P).T  # P H^T S^-1 (S, P symmetric)
+        x = x + K @ (ep.val[rows] - zh)
+        A = eye - K @ H
+        P = A @ P @ A.T + K @ R @ K.T
+        P = 0.5 * (P + P.T)
+        xs[e] = x
+    return xs
+
+
 # --------------------------------------------------------------------------- FilterPy
 def filterpy_run(EKF, ep, x0, P0, q, n: int) -> tuple[np.ndarray, np.ndarray]:
     """FilterPy's ExtendedKalmanFilter over n epochs of the same model; returns (xs, Ps)."""
@@ -292,7 +329,10 @@ def main() -> int:
     us_f = min(tf) / n_full * 1e6
     err_f = np.hypot(*(trk.position(2) - truth[:n_full, 4:6]).T)
 
-    # 4. FilterPy
+    # 4. the plain numpy EKF (always) and FilterPy (if installed)
+    numpy_run(ep, x0, P0, q, 10)
+    tq = time_calls(lambda: numpy_run(ep, x0, P0, q, n_peer), rep_slow)
+    us_np = min(tq) / n_peer * 1e6
     try:
         from filterpy.kalman import ExtendedKalmanFilter as EKF
     except ImportError:
@@ -320,7 +360,8 @@ def main() -> int:
         xs_r = python_steps(_step_numpy, ctx_inf, x0, P0, N_CHECK)
         dP = float("nan")
     dx = float(np.max(np.abs(kc[19] - xs_r)))
-    agree = dx <= TOL
+    dx_np = float(np.max(np.abs(kc[19] - numpy_run(ep, x0, P0, q, N_CHECK))))
+    agree = dx <= TOL and dx_np <= TOL
 
     # 6. the table
     rows = [
@@ -329,37 +370,36 @@ def main() -> int:
         ("rangekit _step_compiled from Python (1 hyp, per call)", us_s),
         ("rangekit _step_numpy (numpy reference engine, 1 hyp)", us_n),
         (f"full tracker: bank of up to 8 hypotheses with mirror splitting ({n_full} ep)", us_f),
+        (f"plain numpy EKF (numpy_run, same model, {n_peer} epochs)", us_np),
         (f"FilterPy ExtendedKalmanFilter (same model, {n_peer} epochs)", us_fp),
         ("  of which the model callbacks (F, Q, R, h, H in numpy)", us_cb),
-        ("Kim & Kim C++ EKF (as reported)", KIM_US),
     ]
     w = max(len(r[0]) for r in rows)
     print()
-    print(f"{'implementation':<{w}}  {'us/step':>9}  {'vs FilterPy':>11}  {'vs Kim&Kim':>10}  20x")
+    print(f"{'implementation':<{w}}  {'us/step':>9}  {'vs numpy':>9}  {'vs FilterPy':>11}")
     for name, us in rows:
         if us is None:
             print(f"{name:<{w}}  {'skipped':>9}")
             continue
-        if name.startswith("  of which") or name.startswith("Kim"):
-            print(f"{name:<{w}}  {us:9.2f}  {'-':>11}  {'-':>10}  -")
+        if name.startswith("  of which"):
+            print(f"{name:<{w}}  {us:9.2f}  {'-':>9}  {'-':>11}")
             continue
         vs_fp = f"{us_fp / us:.1f}x" if us_fp else "-"
-        vs_kim = KIM_US / us
-        print(
-            f"{name:<{w}}  {us:9.2f}  {vs_fp:>11}  {vs_kim:9.1f}x  "
-            f"{'yes' if vs_kim >= ACCEPT_X else 'no'}"
-        )
+        print(f"{name:<{w}}  {us:9.2f}  {us_np / us:8.1f}x  {vs_fp:>11}")
+    print(f"(context, not a peer: Kim & Kim 2013 report {KIM_US:g} us/step for their C++ EKF)")
     print()
     print(f"full tracker: target 2 error median {np.median(err_f[50:]):.3f} m over {n_full} epochs")
+    accepted = us_np / us_k >= ACCEPT_X
     print(
-        f"acceptance (issue 4, >= {ACCEPT_X:.0f}x Kim & Kim = <= {KIM_US / ACCEPT_X:.1f} us/step): "
-        f"{'met' if KIM_US / us_k >= ACCEPT_X else 'NOT met'} ({KIM_US / us_k:.0f}x); "
+        f"acceptance (>= {ACCEPT_X:.0f}x the plain numpy EKF of this run): "
+        f"{'met' if accepted else 'NOT met'} ({us_np / us_k:.0f}x); "
         f"design target <= {DESIGN_US:g} us/step: {'met' if us_k <= DESIGN_US else 'NOT met'} "
         f"({us_k:.2f} us)"
     )
     print(
-        f"agree: {'yes' if agree else 'no'} (max |dx| = {dx:.2e} vs {ref_name}, first "
-        f"{N_CHECK} epochs, no gate, tolerance {TOL:g}; max |dP| = {dP:.2e})"
+        f"agree: {'yes' if agree else 'no'} (max |dx| = {dx:.2e} vs {ref_name}, {dx_np:.2e} vs "
+        f"the plain numpy EKF, first {N_CHECK} epochs, no gate, tolerance {TOL:g}; max |dP| = "
+        f"{dP:.2e})"
     )
     # Headline rows for benchmarks/run.py (ratio = t_peer / t: > 1 = faster than the peer).
     step = "one predict+update, 8 states, 4 rows/epoch"
@@ -368,9 +408,10 @@ def main() -> int:
         peer=f"FilterPy ExtendedKalmanFilter, same model, {n_peer} epochs", peer_value=us_fp,
         note=f"{step}; best of {args.repeats}{fp_note}")  # fmt: skip
     row("ekf", f"run_range_ekf (compiled, 1 hypothesis), {n_ep} epochs", us_k, "us/step",
-        peer="Kim & Kim 2013 C++ EKF (reported)", peer_value=KIM_US,
-        note=f"acceptance >= {ACCEPT_X:.0f}x: {'met' if KIM_US / us_k >= ACCEPT_X else 'NOT met'}; "
-        f"design <= {DESIGN_US:g} us: {'met' if us_k <= DESIGN_US else 'NOT met'}")  # fmt: skip
+        peer=f"plain numpy EKF (numpy_run), same model, {n_peer} epochs", peer_value=us_np,
+        note=f"acceptance >= {ACCEPT_X:.0f}x: {'met' if accepted else 'NOT met'}; "
+        f"design <= {DESIGN_US:g} us: {'met' if us_k <= DESIGN_US else 'NOT met'}; "
+        f"context: Kim & Kim 2013 report {KIM_US:g} us/step (C++, their laptop)")  # fmt: skip
     row("ekf", f"track_ranges (bank of up to 8 hypotheses), {n_full} epochs", us_f, "us/step",
         peer=f"FilterPy ExtendedKalmanFilter (1 filter), {n_peer} epochs", peer_value=us_fp,
         note=f"public tracker, per epoch; best of {rep_slow}{fp_note}")  # fmt: skip
