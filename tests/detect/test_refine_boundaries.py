@@ -1,0 +1,56 @@
+"""Edge fit: documented defaults and thresholds, pinned one by one.
+
+Written against mutants of ``rangekit/detect/refine.py`` that the other tests let through
+(``benchmarks/mutation.py``, docs/evidence.md).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from rangekit.detect.refine import _window, first_peak, fit_edge, refine_onset
+from rangekit.signals import Beep
+from rangekit.signals.beep import beep_continuous
+
+FS = 44100.0
+BEEP = Beep(n_bursts=1)
+
+
+def _ringing(onset=700.4):
+    """A burst over a 16 kHz tone still ringing (the case ``background`` is for)."""
+    n = np.arange(2000)
+    x = beep_continuous((n - onset) / FS, beep=BEEP) + 0.6 * np.sin(2 * np.pi * 16000 * n / FS)
+    return x + 1e-3 * np.random.default_rng(1).standard_normal(len(x))
+
+
+def test_background_is_off_by_default():
+    x = _ringing()
+    kw = {"fs": FS, "beep": BEEP, "lo": 640, "hi": 760}
+    off, on = fit_edge(x, **kw, background=False), fit_edge(x, **kw, background=True)
+    assert abs(off.onset - on.onset) > 1.0  # the two fits differ here ...
+    assert fit_edge(x, **kw) == off  # ... and the default is the one without the tone
+    a = int(round(on.onset))
+    r_off = refine_onset(x, fs=FS, beep=BEEP, a=a, background=False)
+    assert refine_onset(x, fs=FS, beep=BEEP, a=a) == r_off
+    assert refine_onset(x, fs=FS, beep=BEEP, a=a, background=True) != r_off
+
+
+def test_first_peak_threshold_is_frac_of_the_top_and_f_min():
+    f = np.array([0.0, 30.0, 0.0, 1000.0, 0.0])
+    assert first_peak(f, 0.1, 15.0) == 3  # 30 < 0.1 * 1000: not an edge
+    assert first_peak(f, 0.02, 15.0) == 1  # 30 >= 20 and >= 15: the first path
+    assert first_peak(f, 0.02, 40.0) == 3  # below f_min
+    # every value below f_min: the threshold drops to the top, the largest wins
+    assert first_peak(np.array([1.0, 3.0, 2.0, 5.0, 1.0]), 0.1, 15.0) == 3
+
+
+def test_default_window_is_24_samples_and_the_taper_plus_8():
+    for fs in (44100.0, 48000.0, 96000.0):
+        scale = fs / 44100.0
+        pre, post = _window(fs, BEEP, None, None)
+        assert pre == round(24 * scale)
+        assert post == math.ceil(BEEP.taper_s * fs + 8 * scale)
+        assert post > BEEP.taper_s * fs  # the whole rise is in the window
+    assert _window(FS, BEEP, 5, 7) == (5, 7)
