@@ -228,15 +228,14 @@ def make_burst(kw: dict, *, scheme: str):
 
 
 def detector_option(f):
-    """--detector changepoint|xcorr|template (rangekit.detect.DETECTORS, tested equal)."""
+    """--detector changepoint|xcorr (rangekit.detect.DETECTORS, tested equal)."""
     return click.option(
         "--detector",
-        type=click.Choice(["changepoint", "xcorr", "template"]),
+        type=click.Choice(["changepoint", "xcorr"]),
         default="changepoint",
         show_default=True,
-        help="Arrival detector for the beep: STFT change point + edge fit, the whole-beep "
-        "cross-correlation baseline, or template (the matched filter --template uses, with "
-        "the beep as the template).",
+        help="Arrival detector for the beep: STFT change point + edge fit, or the whole-beep "
+        "cross-correlation baseline.",
     )(f)
 
 

@@ -41,14 +41,14 @@ _TEMPLATE_OPTIONS = {
     type=click.FloatRange(min=0.0, min_open=True),
     default=None,
     metavar="S",
-    help="Matched filter only: shortest time between two emissions in seconds (e.g. the firing "
+    help="With --template: shortest time between two emissions in seconds (e.g. the firing "
     "period); peaks closer to a stronger arrival are its echoes [the probe's duration].",
 )
 @click.option(
     "--weighting",
     type=click.Choice(["ml", "prewhiten", "scot", "phat", "none"]),
     default=None,
-    help="Matched filter only: weighting by the recording's noise spectrum [ml].",
+    help="With --template: weighting of the matched filter by the recording's noise spectrum [ml].",
 )
 @beep_options
 @format_option
@@ -64,13 +64,12 @@ def detect_cmd(files, detector, template, expected, min_separation, weighting, f
     ambiguous_first_path, inconsistent_bursts, poor_match, reverb_limited, dc_or_lowband;
     '-' for none). Exit code 6 if a channel holds no beep.
 
-    With --template (or --detector template: the beep as the template) the rows are the
-    arrivals of that probe by matched filtering (first path of each, strongest arrivals
-    at least the probe's length or --min-separation apart, peaks in an arrival's
-    reverberation or ringing belong to it; confidence is the first path's height over
-    the arrival's strongest peak). With --expected N at most N per channel, the same
-    arrivals `range` uses: every command detects through one function
-    (rangekit.detect.detect).
+    With --template the rows are the arrivals of that probe by matched filtering (first
+    path of each, strongest arrivals at least the probe's length or --min-separation
+    apart, peaks in an arrival's reverberation or ringing belong to it; confidence is the
+    first path's height over the arrival's strongest peak). With --expected N at most N
+    per channel, the same arrivals `range` uses: every command detects through one
+    function (rangekit.detect.detect).
 
     \b
     Examples:
@@ -95,9 +94,7 @@ def detect_cmd(files, detector, template, expected, min_separation, weighting, f
         extra = {"min_separation": min_separation, "weighting": weighting}
         for key, opt in _TEMPLATE_OPTIONS.items():
             if extra[key] is not None:
-                raise click.UsageError(
-                    f"{opt} applies to the matched filter only (--template or --detector template)"
-                )
+                raise click.UsageError(f"{opt} applies to --template only")
     probe = load_template(template)
     signal = probe if probe is not None else make_beep(beep_kw)
     kw = {"min_separation_s": min_separation} if min_separation is not None else {}

@@ -98,6 +98,14 @@ calibration_option = click.option(
     "first) or one per device after device 0; off: no correction [off].",
 )
 @click.option(
+    "--jobs",
+    type=click.IntRange(1, 256),
+    default=None,
+    metavar="N",
+    help="With --series (beepbeep): N worker processes detect blocks in parallel; the "
+    "rows are those of one job, in order (at most 256) [1].",
+)
+@click.option(
     "--strict",
     is_flag=True,
     help="Never print a doubtful distance: a range flagged clipped, low_snr, "
@@ -124,6 +132,7 @@ def range_cmd(
     exchange_s,
     skew_s,
     clock_rate,
+    jobs,
     strict,
     fmt,
     output,
@@ -155,15 +164,21 @@ def range_cmd(
       rangekit range --scheme oneway beacons.wav --period 0.2 --tx-order 0,1,2,3,4,5
       rangekit range --scheme echo srf02.wav --period 0.07 --format json
       rangekit range --series phone_log.wav --self-distance 0.1 --format csv -o ranges.csv
+      rangekit range --series phone_log.wav --self-distance 0.1 --jobs 2 --format csv
       rangekit range --series --scheme echo srf02_log.wav --period 0.07 --format csv
     """
     if not series:
         only = (("--block", block_s), ("--exchange", exchange_s), ("--skew", skew_s))
-        for opt, v in (*only, ("--clock-rate", clock_rate)):
+        for opt, v in (*only, ("--clock-rate", clock_rate), ("--jobs", jobs)):
             if v is not None:
                 raise click.UsageError(f"{opt} applies to --series only")
     elif scheme != "beepbeep":
-        only = (("--exchange", exchange_s), ("--skew", skew_s), ("--clock-rate", clock_rate))
+        only = (
+            ("--exchange", exchange_s),
+            ("--skew", skew_s),
+            ("--clock-rate", clock_rate),
+            ("--jobs", jobs),
+        )
         for opt, v in only:
             if v is not None:
                 raise click.UsageError(f"{opt} applies to --series with --scheme beepbeep only")
@@ -218,6 +233,7 @@ def range_cmd(
             block_s=block_s,
             progress=sink.progress,
             probe=probe,
+            jobs=1 if jobs is None else jobs,
         )
         c = speed_of_sound_m_s(temp_c) if speed is None else speed
         meta = {
@@ -567,4 +583,4 @@ class SeriesSink:
                 "(empty distance: nothing in range)",
                 err=True,
             )
-        _report_withheld(withheld, n_rows, meta["files"])
+        _report_withheld(withheld, n_rows, meta.get("files", ()))

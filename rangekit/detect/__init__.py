@@ -33,9 +33,12 @@ __all__ = [
 #: Methods per signal kind; the first is the default. ``changepoint``: STFT change points
 #: refined by the bursts' edge fit (``docs/theory/beepbeep.md``); ``xcorr``: the whole
 #: beep's matched-filter peak; ``template``: matched filtering with noise weighting and
-#: first-path selection (``docs/theory/probes.md``), for any signal.
+#: first-path selection (``docs/theory/probes.md``), for coded bursts and probes. Not for
+#: the beep: its 10 ms tone bursts give a matched-filter main lobe 20 ms wide, in which
+#: the first path cannot be told from a reflection (measured: a reflection 117 samples
+#: late taken in a 6 x 5 x 3 m room, confidence 1, no flag); its edges are what time it.
 METHODS: dict[str, tuple[str, ...]] = {
-    "beep": ("changepoint", "xcorr", "template"),
+    "beep": ("changepoint", "xcorr"),
     "coded": ("template",),
     "probe": ("template",),
 }

@@ -39,10 +39,10 @@ from rangekit.types import INFO_FLAGS, Arrivals, Range, RangeResult, flag_names
 
 __all__ = [
     "DEFAULT_CLOCK_PPM",
+    "WITHHELD",
     "check_speed",
     "doubtful_flags",
     "range_beepbeep",
-    "WITHHELD",
     "refuse_doubtful",
     "self_distances",
     "withhold_doubtful",

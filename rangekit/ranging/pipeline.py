@@ -111,7 +111,7 @@ def range_channels(
         One recording per device, in play order.
     beep : Beep, optional
         The beep that was played (default: the rangekit beep).
-    detector : {"changepoint", "xcorr", "template"}
+    detector : {"changepoint", "xcorr"}
         Arrival detection method for the beep (:data:`rangekit.detect.METHODS`).
     temp_c : float
         Air temperature in degrees Celsius (sets the speed of sound).
@@ -146,8 +146,7 @@ def range_channels(
                 "give self_distance_m or a calibration, not both: the calibration's offset "
                 "already holds the speaker-to-microphone distances"
             )
-    template = probe if probe is not None else (beep if detector == "template" else None)
-    spectra = _common_spectra(channels, template.as_probe()) if template is not None else None
+    spectra = _common_spectra(channels, probe) if probe is not None else None
     for ch in channels:
         try:
             arrivals.append(

@@ -318,6 +318,7 @@ def range_series_beepbeep(
     block_s: float | None = None,
     progress: ProgressFn | None = None,
     probe: Probe | None = None,
+    jobs: int = 1,
 ) -> Iterator[ExchangeRanges]:
     """Two-way ranges of every exchange in long recordings, block by block.
 
@@ -346,6 +347,10 @@ def range_series_beepbeep(
         The signal the devices played if not the beep (a sweep, a lab's own file):
         arrivals by :func:`rangekit.detect.template.detect_template`; its duration takes
         the beep's in the defaults above.
+    jobs : int
+        Worker processes detecting blocks in parallel (default 1: in this process). The
+        blocks' detections are grouped into exchanges in order in this process, so the
+        result does not depend on ``jobs``; memory grows with ``2 jobs`` blocks.
 
     Yields
     ------
@@ -388,6 +393,7 @@ def range_series_beepbeep(
     skew_s = V.positive("skew_s", skew_s, allow_zero=True)
     if block_s is not None:
         block_s = V.positive("block_s", block_s)
+    jobs = V.positive_int("jobs", jobs)
     return _beepbeep_series(
         list(paths),
         beep=beep,
@@ -400,6 +406,7 @@ def range_series_beepbeep(
         block_s=block_s,
         progress=progress,
         probe=probe,
+        jobs=jobs,
     )
 
 
@@ -416,9 +423,8 @@ def _beepbeep_series(
     block_s,
     progress,
     probe=None,
+    jobs=1,
 ) -> Iterator[ExchangeRanges]:
-    from rangekit.io.audio import read_frames
-
     sources = _open_sources(paths, beep, probe)
     signal = beep if probe is None else probe  # what was played
     method = detector if probe is None else "template"
@@ -429,41 +435,30 @@ def _beepbeep_series(
         src0 = sources[0]
         fs0, n0 = src0.fs, src0.frames
         step = max(1, int(round(_block_s(block_s, fs=fs0, n_channels=n) * fs0)))
-        pre_s = skew_s + signal.duration_s
-        post_s = ex_s + skew_s + signal.duration_s + _TAIL_S
+        plan = _BlockPlan(
+            step=step,
+            fs0=fs0,
+            pre_s=skew_s + signal.duration_s,
+            post_s=ex_s + skew_s + signal.duration_s + _TAIL_S,
+            signal=signal,
+            method=method,
+        )
         pairs = [(a, b) for a in range(n) for b in range(a + 1, n)]
         after_s = -math.inf
         count = 0
-        for core0 in range(0, n0, step):
+        cores = range(0, n0, step)
+        if jobs > 1 and len(cores) > 1:
+            blocks = _parallel_blocks(paths, beep, probe, plan, cores, jobs)
+        else:
+            blocks = (_detect_block(sources, plan, core0) for core0 in cores)
+        for core0, (arrivals, names) in zip(cores, blocks, strict=True):
             core1 = min(core0 + step, n0)
-            lo_s, hi_s = core0 / fs0, core1 / fs0
-            arrivals: list[Arrivals] = [None] * n  # type: ignore[list-item]
-            names: list[str] = [""] * n
-            for s in sources:
-                r0 = max(0, int(math.floor((lo_s - pre_s) * s.fs)))
-                r1 = min(s.frames, int(math.ceil((hi_s + post_s) * s.fs)))
-                x = read_frames(s.f, r0, r1)
-                for col, dev in enumerate(s.devices):
-                    names[dev] = _device_name(s, col)
-                    if len(x) == 0:
-                        arrivals[dev] = Arrivals.empty(
-                            fs=s.fs, n_bursts=1 if method == "template" else beep.n_bursts
-                        )
-                        continue
-                    a = detect(
-                        x[:, col],
-                        fs=s.fs,
-                        signal=signal,
-                        method=method,
-                        what=f"'{names[dev]}'",
-                    )
-                    a = a.take(np.argsort(a.onset, kind="stable"))
-                    arrivals[dev] = _shift(a, r0)
-                del x
+            # Grouping is serial (it carries after_s from block to block); the detection
+            # above is per block, so any number of jobs gives the same exchanges.
             groups, after_s = _group_exchanges(
                 [a.onset_s for a in arrivals],
-                lo_s=lo_s,
-                hi_s=hi_s,
+                lo_s=core0 / fs0,
+                hi_s=core1 / fs0,
                 after_s=after_s,
                 exchange_s=ex_s,
                 skew_s=skew_s,
@@ -504,6 +499,90 @@ def _beepbeep_series(
     finally:
         for s in sources:
             s.f.close()
+
+
+@dataclass(frozen=True)
+class _BlockPlan:
+    """How the blocks of a two-way series are cut and detected (picklable for workers)."""
+
+    step: int  # core length, device 0 samples
+    fs0: float
+    pre_s: float  # read before the core (skew + one signal)
+    post_s: float  # read after it (one exchange + skew + one signal + a tail)
+    signal: object
+    method: str
+
+
+def _detect_block(sources, plan: _BlockPlan, core0: int) -> tuple[list[Arrivals], list[str]]:
+    """Every device's arrivals in the block whose core starts at device 0's ``core0``, as
+    file sample indices sorted by onset, and the devices' names."""
+    from rangekit.io.audio import read_frames
+
+    lo_s, hi_s = core0 / plan.fs0, (core0 + plan.step) / plan.fs0
+    n = sum(len(s.devices) for s in sources)
+    arrivals: list[Arrivals] = [None] * n  # type: ignore[list-item]
+    names: list[str] = [""] * n
+    n_bursts = 1 if plan.method == "template" else plan.signal.n_bursts
+    for s in sources:
+        r0 = max(0, int(math.floor((lo_s - plan.pre_s) * s.fs)))
+        r1 = min(s.frames, int(math.ceil((hi_s + plan.post_s) * s.fs)))
+        x = read_frames(s.f, r0, r1)
+        for col, dev in enumerate(s.devices):
+            names[dev] = _device_name(s, col)
+            if len(x) == 0:
+                arrivals[dev] = Arrivals.empty(fs=s.fs, n_bursts=n_bursts)
+                continue
+            a = detect(
+                x[:, col], fs=s.fs, signal=plan.signal, method=plan.method, what=f"'{names[dev]}'"
+            )
+            a = a.take(np.argsort(a.onset, kind="stable"))
+            arrivals[dev] = _shift(a, r0)
+        del x
+    return arrivals, names
+
+
+#: The sources a series worker process opened (one set per process).
+_WORKER_SOURCES: list[_Source] = []
+
+
+def _worker_open(paths, beep, probe) -> None:
+    _WORKER_SOURCES[:] = _open_sources(paths, beep, probe)
+
+
+def _worker_block(plan: _BlockPlan, core0: int):
+    return _detect_block(_WORKER_SOURCES, plan, core0)
+
+
+def _parallel_blocks(paths, beep, probe, plan: _BlockPlan, cores, jobs: int):
+    """:func:`_detect_block` of every core in ``cores``, in order, by ``jobs`` worker
+    processes (each opens the files itself); at most ``2 jobs`` blocks in flight, so memory
+    stays bounded by the block size."""
+    import collections
+    import concurrent.futures as cf
+    import multiprocessing as mp
+
+    ctx = mp.get_context("fork" if "fork" in mp.get_all_start_methods() else "spawn")
+    ex = cf.ProcessPoolExecutor(
+        max_workers=jobs,
+        mp_context=ctx,
+        initializer=_worker_open,
+        initargs=([str(p) for p in paths], beep, probe),
+    )
+    pending: collections.deque = collections.deque()
+    it = iter(cores)
+    try:
+        for core0 in it:
+            pending.append(ex.submit(_worker_block, plan, core0))
+            if len(pending) >= 2 * jobs:
+                break
+        while pending:
+            block = pending.popleft().result()
+            nxt = next(it, None)
+            if nxt is not None:
+                pending.append(ex.submit(_worker_block, plan, nxt))
+            yield block
+    finally:
+        ex.shutdown(wait=False, cancel_futures=True)
 
 
 # --- ultrasonic --------------------------------------------------------------------------
