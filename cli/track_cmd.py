@@ -36,7 +36,7 @@ _APPLIES = {
     "--sigma-d": _DUHL,
     "--k-v": _DUHL,
     "--map": _PF,
-    "--steps": _PF,
+    "--steps": (*_PF, "range-ekf"),
     "--ranges": _PF,
     "--start": _PF,
     "--method": _PF,
@@ -215,8 +215,9 @@ DUHL_COLUMNS = (
     type=click.Path(dir_okay=True),
     default=None,
     metavar="STEPS.csv",
-    help="particle: step events t_s,length_m,heading_rad,heading_sigma_rad "
-    "(docs/formats.md); may be given as LOG instead.",
+    help="particle, range-ekf with a step-odometry --rig: step events "
+    "t_s,length_m,heading_rad,heading_sigma_rad (docs/formats.md); particle: may be given "
+    "as LOG instead.",
 )
 @click.option(
     "--ranges",
@@ -364,10 +365,15 @@ def track_cmd(
             if given[opt]:
                 raise click.UsageError(f"{opt} does not apply with --rig (robust weights, no gate)")
         columns, rows, extra, summary = _range_ekf_rig(
-            log, rig, initial_pose=initial_pose, robust=robust or "huber", smooth=smooth
+            log,
+            rig,
+            initial_pose=initial_pose,
+            robust=robust or "huber",
+            smooth=smooth,
+            steps=steps,
         )
     elif filter_ == "range-ekf":
-        for opt in ("--initial-pose", "--robust"):
+        for opt in ("--initial-pose", "--robust", "--steps"):
             if given[opt]:
                 raise click.UsageError(f"{opt} applies to --filter range-ekf only with --rig")
         columns, rows, extra, summary = _range_ekf(
@@ -418,7 +424,7 @@ def track_cmd(
     else:
         obj = {
             "filter": filter_,
-            "log": str(log if steps is None else steps),
+            "log": str(log if (steps is None or filter_ != "particle") else steps),
             "smoothed": bool(smooth),
             "columns": list(columns),
             "rows": table,
@@ -490,7 +496,7 @@ def _range_ekf(log, *, accel_psd, gate, cross_sign, smooth):
     return columns, rows, extra, summary
 
 
-def _range_ekf_rig(log, rig_path, *, initial_pose, robust, smooth):
+def _range_ekf_rig(log, rig_path, *, initial_pose, robust, smooth, steps=None):
     """Fixed-anchor tracking (rangekit.localize.anchor_ekf) of a DUHL-format log."""
     from rangekit.io.duhllog import read_duhl_log
     from rangekit.localize.anchor_ekf import track_anchors, track_rows
@@ -500,7 +506,7 @@ def _range_ekf_rig(log, rig_path, *, initial_pose, robust, smooth):
     pose0 = None
     if initial_pose is not None:
         vals = float_list(initial_pose, name="--initial-pose")
-        want = 3 if rig.odometry.kind == "differential-drive" else 2
+        want = 3 if rig.odometry.kind == "differential-drive" else 2  # none, steps: X,Y
         if len(vals) != want:
             raise click.BadParameter(
                 f"{initial_pose!r} must be {'X,Y,DEG' if want == 3 else 'X,Y'} for this rig "
@@ -510,7 +516,22 @@ def _range_ekf_rig(log, rig_path, *, initial_pose, robust, smooth):
         pose0 = [vals[0], vals[1], math.radians(vals[2])] if want == 3 else vals
     name = str(log)
     dlog = read_duhl_log(log, name=name)
-    trk = track_anchors(dlog, rig, initial_pose=pose0, robust=robust, smooth=smooth, name=name)
+    slog = None
+    if rig.odometry.kind == "steps":
+        if steps is None:
+            raise click.UsageError(
+                f"the rig {rig_path} has step odometry: give the step log (--steps STEPS.csv)"
+            )
+        from rangekit.io.steplog import read_step_log
+
+        slog = read_step_log(steps, name=str(steps))
+    elif steps is not None:
+        raise click.UsageError(
+            f"--steps needs a rig with step odometry ({rig_path} has {rig.odometry.kind!r})"
+        )
+    trk = track_anchors(
+        dlog, rig, initial_pose=pose0, robust=robust, smooth=smooth, steps=slog, name=name
+    )
     columns, rows = track_rows(trk, smoothed=smooth)
     n_down = len(trk.downweighted)
     bias_txt = ", ".join(

@@ -66,7 +66,7 @@ _ANCHOR = {"id", "x_m", "y_m", "z_m", "bias_m", "sigma_m", "bias_sigma_m"}
 _TAG = {"id", "x_m", "y_m", "z_m"}
 _ODO = {
     "differential-drive": {"type", "wheel_base_m", "k_v_m"},
-    "steps": {"type"},
+    "steps": {"type", "length_sigma_m", "heading_sigma_rad"},
     "none": {"type", "accel_psd"},
 }
 _RANGES = {"sigma_m", "bias_sigma_m", "common_bias_sigma_m", "estimate_bias"}
@@ -87,12 +87,19 @@ class Odometry:
     accel_psd : float
         ``none``: spectral density of the body's white acceleration (m²/s³, constant
         velocity model of Jiang 2018 eqs (2)–(3)); default 0.05.
+    length_sigma_m : float
+        ``steps``: 1-sigma of a step's length (m, default 0.05).
+    heading_sigma_rad : float
+        ``steps``: 1-sigma of a step's heading where the step log leaves it empty (rad,
+        default 0.1).
     """
 
     kind: str
     wheel_base_m: float = float("nan")
     k_v_m: float = 4e-4
     accel_psd: float = 0.05
+    length_sigma_m: float = 0.05
+    heading_sigma_rad: float = 0.1
 
 
 @dataclass(frozen=True)
@@ -155,6 +162,9 @@ class Rig:
             odo |= {"wheel_base_m": self.odometry.wheel_base_m, "k_v_m": self.odometry.k_v_m}
         elif self.odometry.kind == "none":
             odo["accel_psd"] = self.odometry.accel_psd
+        else:
+            odo["length_sigma_m"] = self.odometry.length_sigma_m
+            odo["heading_sigma_rad"] = self.odometry.heading_sigma_rad
         return {
             "format": RIG_FORMAT,
             "version": RIG_VERSION,
@@ -285,7 +295,11 @@ def _parse(obj: Any) -> Rig:
             kind, accel_psd=_pos("odometry.accel_psd", od.get("accel_psd", 0.05), strict=True)
         )
     else:
-        odo = Odometry(kind)
+        odo = Odometry(
+            kind,
+            length_sigma_m=_pos("odometry.length_sigma_m", od.get("length_sigma_m", 0.05)),
+            heading_sigma_rad=_pos("odometry.heading_sigma_rad", od.get("heading_sigma_rad", 0.1)),
+        )
     name = obj.get("name", "")
     return Rig(
         np.array(ids, dtype=np.int64),

@@ -242,20 +242,30 @@ def _robust_weight(nu: np.ndarray, robust: str, k: float, dof: float) -> np.ndar
 
 
 def range_model(
-    x: np.ndarray, a_xyz, lever, i_b: int | None, *, heading: bool
+    x: np.ndarray,
+    a_xyz,
+    lever,
+    i_b: int | None,
+    *,
+    heading: bool,
+    off: int | None = None,
+    phi=None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Predicted range and its Jacobian for states ``x`` (H, d).
 
     ``h = sqrt(|p + R(φ) l_xy − a_xy|² + (l_z − a_z)²) + b_i`` (Kim & Kim 2013 eq (3) with
     the lever arm ``l`` of the tag and the anchor's bias); without a heading state
-    (``heading=False``) the lever arm is not rotated (its horizontal part is ignored).
+    (``heading=False``) the lever arm is rotated by a known heading ``phi`` (step events:
+    the last step's heading), or not at all. ``off`` is the index of the first bias
+    (default 3 with a heading state, else 4).
 
     Returns ``h`` (H,) and ``H = ∂h/∂x`` (H, d).
     """
     x = np.atleast_2d(np.asarray(x, dtype=np.float64))
     Hn, d = x.shape
-    if heading:
-        c, s = np.cos(x[:, 2]), np.sin(x[:, 2])
+    if heading or phi is not None:
+        ang = x[:, 2] if heading else np.broadcast_to(np.asarray(phi, dtype=np.float64), (Hn,))
+        c, s = np.cos(ang), np.sin(ang)
         lx = c * lever[0] - s * lever[1]
         ly = s * lever[0] + c * lever[1]
     else:
@@ -270,7 +280,8 @@ def range_model(
     if heading:
         # ∂(R(φ) l)/∂φ = (−l_y', l_x') with l' the rotated lever arm
         Hm[:, 2] = (dx * -ly + dy * lx) / rho
-    off = 3 if heading else 4
+    if off is None:
+        off = 3 if heading else 4
     h = rho
     if i_b is not None:
         Hm[:, off + i_b] = 1.0
@@ -311,6 +322,8 @@ class _Bank:
     def __init__(self, x: np.ndarray, P: np.ndarray, heading: bool, n_b: int):
         self.x, self.P = x, P
         self.heading = heading
+        self.off = x.shape[1] - n_b
+        self.phi = None  # known heading for the lever arms (step events)
         self.n_b = n_b
         self.d = x.shape[1]
         self.ll = np.zeros(x.shape[0])
@@ -331,6 +344,30 @@ class _Bank:
         self.P = _sym(F @ P @ np.swapaxes(F, 1, 2) + Q)
         self.Phi = F @ self.Phi
 
+    def predict_walk(self, dt, slip_psd, bias_psd):
+        """Between step events: a random walk of the position (sway, slip)."""
+        if dt <= 0:
+            return
+        Q = np.zeros((self.d, self.d))
+        Q[0, 0] = Q[1, 1] = slip_psd * dt
+        b = np.arange(self.off, self.d)
+        Q[b, b] = bias_psd * dt
+        self.P = _sym(self.P + Q)
+
+    def predict_step(self, length, heading, sigma_l, sigma_h):
+        """A step event: ``p += L (cos h, sin h)`` with noise from L and h (Girard 2011
+        §3.2 step 2; the step's world heading from the foot IMU)."""
+        c, s = math.cos(heading), math.sin(heading)
+        J = np.array([[c, -length * s], [s, length * c]])
+        Q = np.zeros((self.d, self.d))
+        Q[:2, :2] = J @ np.diag([sigma_l**2, sigma_h**2]) @ J.T
+        x = self.x.copy()
+        x[:, 0] += length * c
+        x[:, 1] += length * s
+        self.x = x
+        self.P = _sym(self.P + Q)
+        self.phi = heading
+
     def predict_cv(self, dt, q, bias_psd):
         if dt <= 0:
             return
@@ -350,7 +387,7 @@ class _Bank:
     def update_range(self, a_xyz, lever, r, var, i_b, robust, k, dof):
         """Scalar robust update of every hypothesis; returns (y, nu, w) per hypothesis."""
         x, P = self.x, self.P
-        h, Hm = range_model(x, a_xyz, lever, i_b, heading=self.heading)
+        h, Hm = range_model(x, a_xyz, lever, i_b, heading=self.heading, off=self.off, phi=self.phi)
         y = r - h
         PH = np.einsum("hij,hj->hi", P, Hm)
         S0 = np.einsum("hi,hi->h", Hm, PH) + var
@@ -461,7 +498,8 @@ def _initial_bank(rig, log, heading, t_start_idx, init_window_s, n_heading, sigm
             p = a1 + along * u + sgn * math.sqrt(h2) * v
             starts.append((p, np.diag([var_r + 0.25, var_r + 0.25])))
     motion_var = 0.05  # the body moved during the window (0.2 m 1-sigma)
-    dim = (3 if heading else 4) + n_b
+    off = {"differential-drive": 3, "none": 4, "steps": 2}[rig.odometry.kind]
+    dim = off + n_b
     xs, Ps = [], []
     nh = n_heading if heading else 1
     for xy, Pxy in starts:
@@ -470,11 +508,10 @@ def _initial_bank(rig, log, heading, t_start_idx, init_window_s, n_heading, sigm
             P0 = np.zeros((dim, dim))
             x0[:2] = xy
             P0[:2, :2] = Pxy + motion_var * np.eye(2)
-            off = 3 if heading else 4
             if heading:
                 x0[2] = -math.pi + 2 * math.pi * (h + 0.5) / nh
                 P0[2, 2] = (math.pi / nh) ** 2
-            else:
+            elif off == 4:
                 P0[2, 2] = P0[3, 3] = sigma_v0**2
             x0[off:] = 0.0
             P0[off:, off:] = _bias_prior(rig)
@@ -500,6 +537,7 @@ def track_anchors(
     init_window_s: float = 1.5,
     sigma_v0: float = 1.0,
     smooth: bool = False,
+    steps=None,
     name: str = "log",
 ) -> AnchorTrack:
     """Track a rig's body from ranges to fixed anchors (and odometry) with a robust EKF.
@@ -533,6 +571,10 @@ def track_anchors(
         Longest stretch of first ranges multilaterated for the start.
     smooth : bool
         Also RTS-smooth along the best final hypothesis.
+    steps : StepLog, optional
+        Step events (:func:`rangekit.io.steplog.read_step_log`) for a rig with
+        ``odometry.type = "steps"``: each moves the body by its length along its world
+        heading (Girard 2011 §3.2), the lever arms turn with the last step's heading.
     name : str
         The log's name in error messages.
 
@@ -565,10 +607,13 @@ def track_anchors(
     n_heading = positive_int("n_heading", n_heading)
     prune_nats = positive("prune_nats", prune_nats)
     kind = rig.odometry.kind
-    if kind == "steps":
+    if kind == "steps" and steps is None:
         raise IncompatibleInputError(
-            f"{name}: the range EKF does not read step events yet (rig odometry.type 'steps'); use "
-            "'differential-drive' or 'none'"
+            f"{name}: the rig's odometry is step events (odometry.type 'steps'): give the step log"
+        )
+    if kind != "steps" and steps is not None:
+        raise IncompatibleInputError(
+            f"{name}: a step log was given but the rig's odometry is {kind!r}, not 'steps'"
         )
     heading = kind == "differential-drive"
     odo, dist = log.odometry, log.distances
@@ -592,7 +637,7 @@ def track_anchors(
             f"{odo.t_s.size} odometry row(s) (at least 2 needed)"
         )
     if not heading and odo.t_s.size:
-        raise LogFormatError(f"{name}: odometry rows in the log but the rig's odometry is 'none'")
+        raise LogFormatError(f"{name}: odometry rows in the log but the rig's odometry is {kind!r}")
     n_b = rig.n_anchors
     bias_prior = rig.anchor_bias_m.copy()
     if not estimate_bias:
@@ -603,7 +648,7 @@ def track_anchors(
         k0 = int(np.searchsorted(dist.t_s, odo.t_s[0], side="left"))
     else:
         k0 = 0
-    off = 3 if heading else 4
+    off = {"differential-drive": 3, "none": 4, "steps": 2}[kind]
     dim = off + n_b
     if initial_pose is not None:
         p0 = np.asarray(initial_pose, dtype=np.float64)
@@ -620,11 +665,13 @@ def track_anchors(
         if heading:
             x0[0, 2] = p0[2]
             P0[0, 2, 2] = sig[2] ** 2
-        else:
+        elif off == 4:
             P0[0, 2, 2] = P0[0, 3, 3] = sigma_v0**2
         P0[0, off:, off:] = _bias_prior(rig)
         k_next = k0
         t0 = float(odo.t_s[0]) if heading else float(dist.t_s[0])
+        if steps is not None and steps.t_s.size:
+            t0 = min(t0, float(steps.t_s[0])) - 1e-6  # the pose before the first step
         start = "given"
     else:
         x0, P0, k_next, t0 = _initial_bank(
@@ -639,12 +686,48 @@ def track_anchors(
     k_v = rig.odometry.k_v_m
     slip = np.asarray(slip_psd, dtype=np.float64)
     q_cv = rig.odometry.accel_psd
+    si = 0  # next step event
+    if steps is not None:
+        si = int(np.searchsorted(steps.t_s, t0, side="right"))
+        h_sig = np.where(np.isnan(steps.heading_sigma_rad), rig.odometry.heading_sigma_rad,
+                         steps.heading_sigma_rad)  # fmt: skip
+        if si > 0:
+            bank.phi = float(steps.heading_rad[si - 1])
+        # when each step's displacement starts: the previous step (the first: one step
+        # period before it)
+        step_start = np.empty(steps.t_s.size)
+        if steps.t_s.size:
+            step_start[1:] = steps.t_s[:-1]
+            first = float(np.median(np.diff(steps.t_s))) if steps.t_s.size > 1 else 0.5
+            step_start[0] = steps.t_s[0] - first
+        si = int(np.searchsorted(steps.t_s, t0, side="left"))
     # odometry cursor: interval j is (odo.t_s[j-1], odo.t_s[j]] with velocities of row j
     t_now = t0
     j = int(np.searchsorted(odo.t_s, t0, side="right")) if heading else 0
 
     def advance(t_target: float) -> None:
-        nonlocal t_now, j
+        nonlocal t_now, j, si
+        if steps is not None:
+            # step si is the displacement over (t_{si-1}, t_si]: a range inside that
+            # interval sees the walker part of the way (like a split odometry interval)
+            while t_now < t_target - 1e-12:
+                if si >= steps.t_s.size:
+                    bank.predict_walk(t_target - t_now, slip[0], bias_psd)
+                    t_now = t_target
+                    return
+                t_a = step_start[si]
+                t_b = float(steps.t_s[si])
+                t_end = min(t_b, t_target)
+                f = (t_end - max(t_now, t_a)) / max(t_b - t_a, 1e-9)
+                bank.predict_walk(t_end - t_now, slip[0], bias_psd)
+                if f > 0:
+                    bank.predict_step(f * float(steps.length_m[si]), float(steps.heading_rad[si]),
+                                      math.sqrt(f) * rig.odometry.length_sigma_m,
+                                      float(h_sig[si]))  # fmt: skip
+                t_now = t_end
+                if t_end >= t_b:
+                    si += 1
+            return
         if not heading:
             bank.predict_cv(t_target - t_now, q_cv, bias_psd)
             t_now = t_target

@@ -26,9 +26,10 @@ import numpy as np
 
 from rangekit._validate import positive
 from rangekit.io.duhllog import DistanceRows, DUHLLog, OdometryRows
+from rangekit.io.steplog import StepLog
 from rangekit.rig import Odometry, Rig
 
-__all__ = ["RigRun", "simulate_rig_run", "square_rig"]
+__all__ = ["RigRun", "WalkerRun", "simulate_rig_run", "simulate_walker_run", "square_rig"]
 
 
 def square_rig(
@@ -194,3 +195,96 @@ def simulate_rig_run(
         out[:, tg] = o
     dist = DistanceRows(t_r, rig.anchor_ids[anchor].astype(np.int64), d_m)
     return RigRun(DUHLLog(odo, dist), rig, t, pose, bias, err, out)
+
+
+@dataclass(frozen=True)
+class WalkerRun:
+    """A simulated walker: the range log (no odometry rows), the step log, the truth."""
+
+    log: DUHLLog
+    steps: StepLog
+    rig: Rig
+    t_truth_s: np.ndarray
+    xy_truth: np.ndarray  # (n, 2)
+    true_bias_m: np.ndarray
+
+    def truth_xy(self, t_s: np.ndarray) -> np.ndarray:
+        t = np.asarray(t_s, dtype=np.float64)
+        return np.column_stack([np.interp(t, self.t_truth_s, self.xy_truth[:, c]) for c in (0, 1)])
+
+
+def simulate_walker_run(
+    rig: Rig,
+    *,
+    duration_s: float = 60.0,
+    range_rate_hz: float = 4.0,
+    speed_mps: float = 1.0,
+    step_rate_hz: float = 1.8,
+    length_sigma_m: float = 0.04,
+    heading_sigma_rad: float = 0.05,
+    heading_drift_rad_s: float = 0.003,
+    bias_m=0.10,
+    scatter_m: float = 0.10,
+    skew_shape: float = 4.0,
+    outlier_prob: float = 0.05,
+    outlier_max_m: float = 0.7,
+    rng=None,
+) -> WalkerRun:
+    """A walker on an ellipse inside the anchors, with step events and sequential ranges.
+
+    Steps at ``step_rate_hz``: the measured length is the true chord ± ``length_sigma_m``,
+    the heading the chord's direction + white noise ``heading_sigma_rad`` + a random-walk
+    drift (``heading_drift_rad_s`` per sqrt(s): a foot IMU's yaw drift). Ranges as in
+    :func:`simulate_rig_run` (bias + skewed scatter + positive outliers), one anchor per
+    ranging, to the rig's tags rotated with the walking direction.
+
+    Examples
+    --------
+    >>> from rangekit.io.steplog import StepLog
+    >>> run = simulate_walker_run(square_rig(), duration_s=5.0, rng=1)
+    >>> isinstance(run.steps, StepLog), run.log.odometry.t_s.size
+    (True, 0)
+    """
+    g = np.random.default_rng(rng)
+    duration_s = positive("duration_s", duration_s)
+    lo, hi = rig.anchor_xyz_m[:, :2].min(axis=0), rig.anchor_xyz_m[:, :2].max(axis=0)
+    c, half = (lo + hi) / 2, (hi - lo) * 0.3
+    t = np.arange(0.0, duration_s + 1e-9, 0.01)
+    per = 2 * np.pi * np.sqrt((half[0] ** 2 + half[1] ** 2) / 2)
+    ang = g.uniform(0, 2 * np.pi) + 2 * np.pi * speed_mps * t / per
+    xy = c + np.column_stack([half[0] * np.cos(ang), half[1] * np.sin(ang)])
+    vel = np.gradient(xy, t, axis=0)
+    head = np.arctan2(vel[:, 1], vel[:, 0])
+    t_st = np.arange(1.0 / step_rate_hz, duration_s, 1.0 / step_rate_hz)
+    p_st = np.column_stack([np.interp(t_st, t, xy[:, k]) for k in (0, 1)])
+    prev = np.vstack([xy[:1], p_st[:-1]])
+    chord = p_st - prev
+    drift = np.cumsum(g.normal(0, heading_drift_rad_s * np.sqrt(1.0 / step_rate_hz), t_st.size))
+    steps = StepLog(
+        t_st,
+        np.maximum(np.hypot(*chord.T) + g.normal(0, length_sigma_m, t_st.size), 0.0),
+        np.arctan2(chord[:, 1], chord[:, 0]) + drift + g.normal(0, heading_sigma_rad, t_st.size),
+        np.full(t_st.size, heading_sigma_rad),
+    )
+    A = rig.n_anchors
+    bias = np.broadcast_to(np.asarray(bias_m, dtype=np.float64), (A,)).copy()
+    n_r = int(duration_s * range_rate_hz)
+    t_r = (np.arange(n_r) + 0.5 + g.uniform(-0.1, 0.1, n_r)) / range_rate_hz
+    t_r = t_r[t_r < duration_s]
+    anchor = np.arange(t_r.size) % A
+    pr = np.column_stack([np.interp(t_r, t, xy[:, k]) for k in (0, 1)])
+    hr = np.interp(t_r, t, np.unwrap(head))
+    d_m = np.full((t_r.size, 3), np.nan)
+    for tg in range(rig.n_tags):
+        lx, ly, lz = rig.tag_lever_m[tg]
+        px = pr[:, 0] + np.cos(hr) * lx - np.sin(hr) * ly
+        py = pr[:, 1] + np.sin(hr) * lx + np.cos(hr) * ly
+        a = rig.anchor_xyz_m[anchor]
+        true = np.sqrt((px - a[:, 0]) ** 2 + (py - a[:, 1]) ** 2 + (lz - a[:, 2]) ** 2)
+        k = skew_shape
+        scat = scatter_m * (g.gamma(k, 1.0, t_r.size) - k) / math.sqrt(k)
+        o = g.random(t_r.size) < outlier_prob
+        excess = np.where(o, g.uniform(0, outlier_max_m, t_r.size), 0.0)
+        d_m[:, tg] = np.maximum(true + bias[anchor] + scat + excess, 0.0)
+    dist = DistanceRows(t_r, rig.anchor_ids[anchor].astype(np.int64), d_m)
+    return WalkerRun(DUHLLog(distances=dist), steps, rig, t, xy, bias)

@@ -25,7 +25,7 @@ GOOD = {
 }
 
 
-@pytest.mark.parametrize("name", ["kim2013", "one_tag_square", "walker_phone"])
+@pytest.mark.parametrize("name", ["kim2013", "one_tag_square", "walker_phone", "walker_steps"])
 def test_shipped_rigs_parse_and_round_trip(name):
     rig = read_rig(RIGS / f"{name}.json")
     again = parse_rig(rig.to_json())

@@ -88,7 +88,7 @@ def test_dead_reckoning_smoother_on_1000_runs():
     rng = np.random.default_rng(2007)
     bad = 0
     for _ in range(N_RUNS):
-        n = int(rng.integers(5, 25))
+        n = int(rng.integers(4, 12))
         t = np.cumsum(rng.uniform(0.01, 0.2, n))
         a = rng.normal(0, 1, (2, n))
         speed = np.where(rng.random(n) < 0.5, np.abs(rng.normal(0.5, 0.3, n)), np.nan)
