@@ -214,7 +214,9 @@ def test_acceptance_40_exchanges_in_a_room(tmp_path, distance_m, ppm, seed):
     fixed = correct_clock(ex, rates, speed_m_s=c, self_distance_m=0.1)
     d = sim.distances_m[0, 1]
     err = np.abs([e.ranges[0].distance_m - d for e in fixed])
-    assert np.median(err) <= 0.01 and np.percentile(err, 90) <= 0.03
+    # Issue 8 asked for median <= 1 cm and p90 <= 3 cm; within 2x of today (issue 21):
+    # measured median 1.05 / 1.01 / 0.75 mm, p90 2.11 / 2.62 / 2.48 mm (the three cases).
+    assert np.median(err) <= 2.1e-3 and np.percentile(err, 90) <= 5.3e-3, err
     # Without the correction: -c/2 e G_k, G_k the true start-to-start gap of exchange k.
     unc = np.array([e.ranges[0].distance_m - d for e in ex])
     g = np.array([x["play_s"][1] - x["play_s"][0] for x in sim.truth["exchanges"]])

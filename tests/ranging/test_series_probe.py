@@ -65,7 +65,9 @@ def test_skewed_sweep_series_corrected_and_calibrated(tmp_path, ppm):
     fixed = correct_clock(ex, rates, speed_m_s=C)
     got = np.array([r.distance_m for e in fixed for r in cal.apply_ranges(e.ranges, speed_m_s=C)])
     err = np.abs(got - d)
-    assert np.median(err) <= 0.01 and np.percentile(err, 90) <= 0.03, err
+    # Issue 8 asked for median <= 1 cm and p90 <= 3 cm; within 2x of today (issue 21):
+    # measured median 0.26 / 0.69 mm, p90 0.44 / 0.90 mm (the two skews).
+    assert np.median(err) <= 1.4e-3 and np.percentile(err, 90) <= 1.8e-3, err
     # Not corrected (but calibrated): the skew error c/2 e G is there, ~G = 0.35-0.55 s.
     raw = np.array([r.distance_m for e in ex for r in cal.apply_ranges(e.ranges, speed_m_s=C)])
     assert np.median(np.abs(raw - d)) > 0.5 * C / 2 * abs(rel) * 1e-6 * 0.35
