@@ -9,6 +9,8 @@ from rangekit_cli._options import FiniteRange, debug_option, emit, format_choice
 
 #: Output fields, in order.
 FIELDS = ("x_m", "y_m", "heading_deg", "method_used", "residual_m")
+#: Added when the distances' sigma is known (--ranges or --sigma).
+SIGMA_FIELDS = ("sigma_x_m", "sigma_y_m", "sigma_heading_deg")
 
 #: Header of the --distances CSV file.
 DISTANCE_COLUMNS = ("tx", "d1_m", "d2_m", "d3_m")
@@ -29,6 +31,22 @@ DISTANCE_COLUMNS = ("tx", "d1_m", "d2_m", "d3_m")
     metavar="FILE.csv",
     help="CSV with header tx,d1_m,d2_m,d3_m: one row per transmitter heard, its distances "
     "(m) to receivers 1, 2, 3 (at 0, 120, 240 degrees from the heading).",
+)
+@click.option(
+    "--ranges",
+    type=click.Path(dir_okay=True),
+    default=None,
+    metavar="FILE.csv|json",
+    help="The output of `rangekit range --scheme oneway --tx-order ...` (CSV or JSON): per "
+    "transmitter the median distance to each receiver (channel 0, 1, 2 = receiver 1, 2, 3) "
+    "and the median sigma, which gives the pose's sigma.",
+)
+@click.option(
+    "--sigma",
+    type=FiniteRange(0.0, None, min_open=True),
+    default=None,
+    metavar="M",
+    help="1-sigma of every distance of --distances or --tx, m: adds the pose's sigma.",
 )
 @click.option(
     "--tx",
@@ -68,34 +86,52 @@ DISTANCE_COLUMNS = ("tx", "d1_m", "d2_m", "d3_m")
 @format_choice(("table", "json"), "table")
 @output_option
 @debug_option
-def locate_cmd(beacons, distances, tx_items, method, d_th, r_r, fmt, output):
+def locate_cmd(beacons, ranges, sigma, distances, tx_items, method, d_th, r_r, fmt, output):
     """One robot pose from the distances of ceiling transmitters to its three receivers.
 
     The UHL solve of Kim & Kim 2013 §II-B: the transmitters' positions come from the
-    beacon file, the distances from a CSV file (--distances) or the command line (--tx,
-    repeated). Prints x_m, y_m, heading_deg (in (-180, 180]), the method that gave the
-    position and the RMS distance residual at the solution (m).
+    beacon file, the distances from a CSV file (--distances), the command line (--tx,
+    repeated) or one-way ranging output (--ranges). Prints x_m, y_m, heading_deg (in
+    (-180, 180]), the method that gave the position and the RMS distance residual at the
+    solution (m); with --ranges or --sigma also the pose's 1-sigma (the distances' sigma
+    propagated through the solve to first order).
 
     \b
     Examples:
       rangekit locate --beacons beacons.json --distances d.csv
       rangekit locate --beacons beacons.json --tx 1:2.11,2.05,2.20 --tx 2:2.42,2.37,2.51
       rangekit locate --beacons beacons.json --distances d.csv --method direct --format json
+      rangekit synth oneway --seed 1 -o ow.wav
+      rangekit range --scheme oneway ow.wav --period 0.2 --tx-order 0,1,2,3,4,5 -o r.csv \\
+          --format csv
+      rangekit locate --beacons ow.beacons.json --ranges r.csv
     """
     from rangekit.errors import IncompatibleInputError, InvalidParameterError
     from rangekit.io.duhllog import read_beacons
     from rangekit.io.results import format_rows
     from rangekit.localize.uhl import solve_pose
 
-    if distances is not None and tx_items:
-        raise click.UsageError("--distances and --tx exclude each other")
-    if distances is None and not tx_items:
-        raise click.UsageError("give the distances: --distances FILE.csv or --tx ID:D1,D2,D3")
+    given = [
+        o for o, v in (("--distances", distances), ("--tx", tx_items), ("--ranges", ranges)) if v
+    ]
+    if len(given) > 1:
+        raise click.UsageError(f"{' and '.join(given)} exclude each other")
+    if not given:
+        raise click.UsageError(
+            "give the distances: --distances FILE.csv, --tx ID:D1,D2,D3 or --ranges FILE"
+        )
+    if ranges is not None and sigma is not None:
+        raise click.UsageError("--sigma applies to --distances and --tx (--ranges has sigma_m)")
+    sig = None
     if distances is not None:
         ids, d, source = _read_distances(distances)
+    elif ranges is not None:
+        ids, d, sig, source = _read_ranges(ranges)
     else:
         ids, d = _parse_tx(tx_items)
         source = "--tx"
+    if sigma is not None:
+        sig = [[sigma] * 3 for _ in ids]
     bcn = read_beacons(beacons)
     known = set(bcn.ids.tolist())
     for t in ids:
@@ -124,6 +160,19 @@ def locate_cmd(beacons, distances, tx_items, method, d_th, r_r, fmt, output):
         "method_used": pose.method_used,
         "residual_m": pose.residual_m,
     }
+    fields = FIELDS
+    if sig is not None:
+        import numpy as np
+
+        from rangekit.localize.uhl_cov import pose_covariance
+
+        s = np.asarray(sig, dtype=float)
+        if not np.all(np.isfinite(s)):
+            raise IncompatibleInputError(f"{source}: a distance without sigma_m")
+        cov = pose_covariance(bcn.position(ids), d, s, r_R=r_r, method=method, d_th=d_th)
+        sd = np.sqrt(np.diag(cov))
+        row.update(sigma_x_m=sd[0], sigma_y_m=sd[1], sigma_heading_deg=math.degrees(sd[2]))
+        fields = FIELDS + SIGMA_FIELDS
     if fmt == "json":
         import json
 
@@ -136,9 +185,11 @@ def locate_cmd(beacons, distances, tx_items, method, d_th, r_r, fmt, output):
             "beacons": str(beacons),
             "tx": ids,
         }
+        if sig is not None:
+            obj["covariance"] = cov.tolist()
         text = json.dumps(obj, indent=2) + "\n"
     else:
-        text = format_rows([row], FIELDS, "table")
+        text = format_rows([row], fields, "table")
     emit(text, output)
 
 
@@ -159,6 +210,61 @@ def _read_distances(path) -> tuple[list[int], list[list[float]], str]:
         seen.add(t)
     d = [[float(tab[c][i]) for c in DISTANCE_COLUMNS[1:]] for i in range(len(ids))]
     return ids, d, name
+
+
+def _read_ranges(path):
+    """Ids, (n, 3) distances and sigmas from `range --scheme oneway` output (CSV or JSON)."""
+    import json
+
+    from rangekit.errors import InputFileError, LogFormatError
+    from rangekit.io.csvlog import Column, read_table
+    from rangekit.localize.uhl_cov import uhl_inputs
+
+    name = str(path)
+    if name.endswith(".json"):
+        try:
+            with open(path, encoding="utf-8") as f:
+                rows = json.load(f)["ranges"]
+            cols = {k: [r[k] for r in rows] for k in ("tx", "channel", "distance_m", "sigma_m")}
+        except OSError as e:
+            raise InputFileError(f"cannot read '{name}': {e.strerror or e}") from None
+        except (ValueError, KeyError, TypeError) as e:
+            raise LogFormatError(
+                f'{name}: not the JSON of `rangekit range --scheme oneway` (a "ranges" list '
+                f"of objects with tx, channel, distance_m, sigma_m): {e}"
+            ) from None
+        tx = [-1 if v is None else v for v in cols["tx"]]
+        dist = [math.nan if v is None else v for v in cols["distance_m"]]
+        sig = [math.nan if v is None else v for v in cols["sigma_m"]]
+        bad = [v for v in (*tx, *cols["channel"]) if isinstance(v, bool) or not isinstance(v, int)]
+        if bad:
+            raise LogFormatError(f"{name}: tx and channel must be integers, got {bad[0]!r}")
+        channel = cols["channel"]
+    else:
+        spec = {
+            "tx": Column(kind="str", empty_ok=True),
+            "channel": Column(kind="int", nonneg=True),
+            "distance_m": Column(empty_ok=True, nonneg=True),
+            "sigma_m": Column(empty_ok=True, nonneg=True),
+        }
+        tab = read_table(path, spec, name=name)
+        tx = []
+        for i, v in enumerate(tab["tx"].tolist()):
+            try:
+                tx.append(-1 if v in ("", "-") else int(v))
+            except ValueError:
+                raise LogFormatError(
+                    f"{name} row {i + 1}, column 'tx': {v!r} is not an id"
+                ) from None
+        channel, dist, sig = tab["channel"], tab["distance_m"], tab["sigma_m"]
+    r = uhl_inputs(tx, channel, dist, sig, what=name)
+    if r.dropped:
+        click.echo(
+            f"rangekit: {name}: transmitter(s) {', '.join(map(str, r.dropped))} left out "
+            "(not heard on every receiver)",
+            err=True,
+        )
+    return r.ids, r.distances_m.tolist(), r.sigma_m.tolist(), name
 
 
 def _parse_tx(items) -> tuple[list[int], list[list[float]]]:

@@ -440,13 +440,17 @@ def synth_oneway(
 
     Each activation window (--period) starts with the RF trigger; the window's Tx drives
     a Barker-7 burst on 40 kHz --latency later. Writes OUTPUT (one channel per receiver,
-    16-bit PCM, sample 0 = the first trigger) and OUTPUT with suffix .json: the geometry,
-    each window's Tx and its true distance to every receiver.
+    16-bit PCM, sample 0 = the first trigger), OUTPUT with suffix .json (the geometry,
+    each window's Tx and its true distance to every receiver) and OUTPUT with suffix
+    .beacons.json: the beacon file of `locate` and `track --filter duhl` (Tx ids 0, 1, ...
+    in firing order, z = --ceiling above the receivers).
 
     \b
     Examples:
       rangekit synth oneway --tx 1,0.5 --tx -1,2 --pose 0.2,0.1,30 --seed 1 -o ow.wav
       rangekit range --scheme oneway ow.wav --period 0.2
+      rangekit range --scheme oneway ow.wav --period 0.2 --tx-order 0,1 --format csv -o r.csv
+      rangekit locate --beacons ow.beacons.json --ranges r.csv
     """
     import math
 
@@ -498,13 +502,20 @@ def synth_oneway(
     )
     out = Path(output)
     x, truth = _ultrasonic_output(sim.x.T, sim.truth, peak=0.5, fs=fs, seed=seed, imp=impairments)
+    from rangekit.io.duhllog import Beacons
+
+    beacons = out.with_suffix(".beacons.json")
     write_audio(out, x, fs=fs)
     truth["seed"] = seed
     truth["files"] = [out.name]
+    truth["beacons"] = beacons.name
     write_json(out.with_suffix(".json"), truth)
+    write_json(beacons, Beacons(np.arange(len(pts)), pts).to_json())
     click.echo(
-        f"wrote {out.name} ({len(truth['windows'])} windows x {x.shape[1]} receivers) and "
-        f"{out.with_suffix('.json').name}",
+        f"wrote {out.name} ({len(truth['windows'])} windows x {x.shape[1]} receivers), "
+        f"{out.with_suffix('.json').name} and {beacons.name} (Tx ids 0-{len(pts) - 1} in "
+        "firing order: range with --tx-order "
+        f"{','.join(str(i) for i in range(len(pts)))})",
         err=True,
     )
 
