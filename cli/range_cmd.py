@@ -285,6 +285,7 @@ def range_cmd(
 
 def _clock_rate(sink, items, text: str, meta: dict, *, c, sd, clock_ppm):
     """``--clock-rate``: collect the series, estimate or take the rates, correct, report."""
+    from rangekit.io.results import format_pm
     from rangekit.ranging.clock import correct_series_clock
 
     mode = text.strip().lower()
@@ -307,10 +308,10 @@ def _clock_rate(sink, items, text: str, meta: dict, *, c, sd, clock_ppm):
     if ppm is None:
         rej = f", {rates.n_rejected} rejected" if rates.n_rejected else ""
         for i in range(1, len(rates.ppm)):
+            rate = format_pm(rates.ppm[i], rates.sigma_ppm[i], sign=True)
             click.echo(
-                f"rangekit: clock rate vs device 0: device {i} {rates.ppm[i]:+.1f} +- "
-                f"{rates.sigma_ppm[i]:.1f} ppm ({rates.n_exchanges} exchanges over "
-                f"{rates.span_s:.1f} s{rej})",
+                f"rangekit: clock rate vs device 0: device {i} {rate} ppm "
+                f"({rates.n_exchanges} exchanges over {rates.span_s:.1f} s{rej})",
                 err=True,
             )
     return iter(fixed)

@@ -5,13 +5,14 @@ from __future__ import annotations
 import csv
 import io
 import json
+import math
 from collections.abc import Sequence
 
 import numpy as np
 
 from rangekit.types import Arrivals, RangeResult
 
-__all__ = ["arrivals_rows", "format_arrivals", "format_ranges", "format_rows"]
+__all__ = ["arrivals_rows", "format_arrivals", "format_pm", "format_ranges", "format_rows"]
 
 RANGE_FIELDS = ("a", "b", "distance_m", "sigma_m", "flags")
 ARRIVAL_FIELDS = (
@@ -38,6 +39,22 @@ def _fmt(v) -> str:
     if isinstance(v, (list, tuple)):
         return ";".join(str(t) for t in v)
     return str(v)
+
+
+def format_pm(value: float, sigma: float, *, sign: bool = False) -> str:
+    """``value +- sigma`` with the digits sigma supports: two significant digits of sigma.
+
+    Examples
+    --------
+    >>> format_pm(50.0012, 0.021, sign=True), format_pm(39.94, 0.3), format_pm(2.0, 0.0)
+    ('+50.001 +- 0.021', '39.94 +- 0.30', '2 +- 0')
+    """
+    if not (math.isfinite(sigma) and sigma > 0):
+        digits = 0
+    else:
+        digits = min(9, max(0, 1 - math.floor(math.log10(sigma))))
+    s = "+" if sign else ""
+    return f"{value:{s}.{digits}f} +- {sigma:.{digits}f}"
 
 
 def format_rows(

@@ -11,6 +11,7 @@ import pytest
 from clihelp import assert_error, ok, run
 
 from rangekit.io.audio import write_audio
+from rangekit.io.results import format_pm
 from rangekit.physics import speed_of_sound_m_s
 from rangekit.ranging.clock import correct_series_clock
 from rangekit.ranging.series import range_series_beepbeep
@@ -58,11 +59,14 @@ def test_estimate_json_equals_the_library_and_reports_on_stderr(files):
     assert meta["mode"] == "estimate"
     assert meta["ppm"] == [0.0, rates.ppm[1]] and meta["n_exchanges"] == 10
     lines = r.stderr.splitlines()
+    # The digits follow the sigma (two significant): "+80.0 +- 0.0" hid a 0.02 ppm sigma.
     want = (
-        f"rangekit: clock rate vs device 0: device 1 {rates.ppm[1]:+.1f} +- "
-        f"{rates.sigma_ppm[1]:.1f} ppm (10 exchanges over {rates.span_s:.1f} s)"
+        f"rangekit: clock rate vs device 0: device 1 "
+        f"{format_pm(rates.ppm[1], rates.sigma_ppm[1], sign=True)} ppm "
+        f"(10 exchanges over {rates.span_s:.1f} s)"
     )
     assert lines == [want]
+    assert f"{rates.sigma_ppm[1]:.2g}".lstrip("0") in lines[0]
     # The correction changed the ranges (by about c/2 x 80 ppm x 0.6 s = 8 mm).
     off = json.loads(ok(run(args)).stdout)["ranges"]
     assert "clock_rate" not in json.loads(ok(run(args)).stdout)
