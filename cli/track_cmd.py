@@ -303,7 +303,8 @@ def track_cmd(
 ):
     """Track from a log: people from ranges, a robot from its IMU, or a walker's fixes.
 
-    LOG.csv is a measurement log (range-ekf), an IMU log (dead-reckoning), a position log
+    LOG.csv is a measurement log (range-ekf; with --rig a DUHL log of odometry and ranges
+    to the rig's fixed anchors, docs/rigs.md), an IMU log (dead-reckoning), a position log
     (lmax) or a DUHL log of wheel odometry and ultrasonic distances (duhl, duhl-ranges),
     formats in docs/formats.md. Prints one row per epoch (and per target for range-ekf)
     as CSV with a header, or JSON with "columns" and "rows". range-ekf also prints a
@@ -318,6 +319,7 @@ def track_cmd(
       rangekit track --filter range-ekf log.csv --smooth -o track.csv
       rangekit track --filter dead-reckoning imu.csv --format json
       rangekit track --filter lmax fixes.csv --l-max 0.5 --i-star 1
+      rangekit track --filter range-ekf --rig rig.json robot.csv -o track.csv
       rangekit track --filter duhl run.csv --beacons beacons.json -o pose.csv
       rangekit track --filter particle --map plan.json --steps steps.csv \\
           --ranges ranges.csv --start 1.0,1.0 -o track.csv
