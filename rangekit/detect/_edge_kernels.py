@@ -93,26 +93,35 @@ def _edge_stat_py(seg: np.ndarray, qt: np.ndarray, n_base: int, n_par: int) -> n
     ``seg`` holds ``n_out + L - 1`` samples; ``qt`` (p + n_base, L) stacks, one row per
     basis vector, the orthonormal bases of the full model (first ``p = n_par`` rows) and
     of the nuisance-only model (the last ``n_base`` rows, none without nuisance terms).
+    The windows are the innermost loop (one multiply-add over all windows per basis
+    sample, which vectorises), not the samples of one window.
     """
     n_q, length = qt.shape
-    n_out = seg.shape[0] - length + 1
-    out = np.empty(max(n_out, 0), dtype=np.float64)
-    for i in range(n_out):
-        total = 0.0
+    n_out = max(seg.shape[0] - length + 1, 0)
+    total = np.zeros(n_out)
+    full = np.zeros(n_out)
+    base = np.zeros(n_out)
+    acc = np.empty(n_out)
+    for ll in range(length):
+        for i in range(n_out):
+            v = seg[i + ll]
+            total[i] += v * v
+    for j in range(n_q):
+        acc[:] = 0.0
         for ll in range(length):
-            total += seg[i + ll] * seg[i + ll]
-        full = 0.0
-        base = 0.0
-        for j in range(n_q):
-            acc = 0.0
-            for ll in range(length):
-                acc += seg[i + ll] * qt[j, ll]
-            if j < n_par:
-                full += acc * acc
-            else:
-                base += acc * acc
-        resid = max(total - full, 1e-12 * total + 1e-300) / (length - n_par)
-        out[i] = max(full - base, 0.0) / 2.0 / resid
+            q = qt[j, ll]
+            for i in range(n_out):
+                acc[i] += seg[i + ll] * q
+        if j < n_par:
+            for i in range(n_out):
+                full[i] += acc[i] * acc[i]
+        else:
+            for i in range(n_out):
+                base[i] += acc[i] * acc[i]
+    out = np.empty(n_out)
+    for i in range(n_out):
+        resid = max(total[i] - full[i], 1e-12 * total[i] + 1e-300) / (length - n_par)
+        out[i] = max(full[i] - base[i], 0.0) / 2.0 / resid
     return out
 
 
@@ -244,20 +253,51 @@ def _fit_tau(
     gram[:, :] = 0.0
     g0 = 0.0
     g1 = 0.0
+    t00 = 0.0
+    t10 = 0.0
+    t11 = 0.0
+    # the nuisance columns' products with the edge columns, in scalars (up to 4 columns;
+    # each sum in sample order, as before)
+    u00 = u01 = u10 = u11 = u20 = u21 = u30 = u31 = 0.0
     for ll in range(length):
         e = _env((n[ll] - tau) / fs, taper_s, burst_s)
+        if e == 0.0:
+            continue  # adds only zeros (before the onset)
         b0 = e * s[ll]
         b1 = e * c[ll]
         d = seg[ll]
         g0 += b0 * d
         g1 += b1 * d
-        gram[0, 0] += b0 * b0
-        gram[1, 0] += b1 * b0
-        gram[1, 1] += b1 * b1
-        for a in range(pn):
-            u = nuis[ll, a]
-            gram[2 + a, 0] += u * b0
-            gram[2 + a, 1] += u * b1
+        t00 += b0 * b0
+        t10 += b1 * b0
+        t11 += b1 * b1
+        if pn > 0:
+            u = nuis[ll, 0]
+            u00 += u * b0
+            u01 += u * b1
+            u = nuis[ll, 1]
+            u10 += u * b0
+            u11 += u * b1
+        if pn > 2:
+            u = nuis[ll, 2]
+            u20 += u * b0
+            u21 += u * b1
+            u = nuis[ll, 3]
+            u30 += u * b0
+            u31 += u * b1
+    gram[0, 0] = t00
+    gram[1, 0] = t10
+    gram[1, 1] = t11
+    if pn > 0:
+        gram[2, 0] = u00
+        gram[2, 1] = u01
+        gram[3, 0] = u10
+        gram[3, 1] = u11
+    if pn > 2:
+        gram[4, 0] = u20
+        gram[4, 1] = u21
+        gram[5, 0] = u30
+        gram[5, 1] = u31
     g[0] = g0
     g[1] = g1
     for a in range(pn):
@@ -440,6 +480,11 @@ def _fir_py(x: np.ndarray, hr: np.ndarray, half: int, start: int, count: int) ->
     """
     n_h = hr.shape[0]
     n = x.shape[0]
+    if n_h == 0:  # no conditioning: the raw samples as float64
+        out = np.zeros(count, dtype=np.float64)
+        for j in range(max(0, -start), min(count, n - start)):
+            out[j] = x[start + j]
+        return out
     # The samples the outputs reach, zero outside x; then tap by tap over all outputs
     # (an axpy per tap, which vectorises).
     base = start + half - (n_h - 1)
@@ -454,14 +499,708 @@ def _fir_py(x: np.ndarray, hr: np.ndarray, half: int, start: int, count: int) ->
     return out
 
 
+def _widen_py(f: np.ndarray, half: int, out: np.ndarray) -> None:
+    """``changepoint._widen``: running maximum over ``+-half`` samples, zeros beyond the
+    ends (``f >= 0``)."""
+    n = f.shape[0]
+    for i in range(n):
+        m = 0.0
+        for j in range(max(0, i - half), min(n, i + half + 1)):
+            if f[j] > m:
+                m = f[j]
+        out[i] = m
+
+
+def _first_edge_py(stat: np.ndarray, frac: float, floor: float, sep: int) -> int:
+    """``changepoint._first_edge`` (the same comparisons)."""
+    n = stat.shape[0]
+    top = 0
+    for i in range(1, n):
+        if stat[i] > stat[top]:
+            top = i
+    thr = max(frac * stat[top], floor)
+    for pk in range(1, n - 1):
+        if pk > top - sep:
+            break
+        if stat[pk] >= stat[pk - 1] and stat[pk] > stat[pk + 1] and stat[pk] >= thr:
+            return pk
+    return top
+
+
+def _median_py(v: np.ndarray, m: int) -> float:
+    """``numpy.median`` of ``v[:m]`` (sorted copy; mean of the two middle ones)."""
+    w = np.sort(v[:m])
+    h = m // 2
+    return w[h] if m % 2 else (w[h - 1] + w[h]) / 2.0
+
+
+def _combine_py(
+    on: np.ndarray,
+    sg_raw: np.ndarray,
+    snr: np.ndarray,
+    fst: np.ndarray,
+    have: np.ndarray,
+    spacing: float,
+    scale: float,
+    min_bursts: int,
+    model_sigma: float,
+    res: np.ndarray,
+    row: np.ndarray,
+) -> bool:
+    """``changepoint._combine`` of unclipped bursts: False when too few agree, else
+    ``res = [onset, sigma, snr_db, confidence, n_ok, strength]`` and ``row`` the kept
+    bursts' onsets (NaN for the others)."""
+    k_b = on.shape[0]
+    ks = np.empty(k_b, dtype=np.int64)
+    m = 0
+    for k in range(k_b):
+        if have[k]:
+            ks[m] = k
+            m += 1
+    if m < min_bursts:
+        return False
+    est = np.empty(m)
+    sg = np.empty(m)
+    allow = np.empty(m)
+    w_all = np.empty(m)
+    for i in range(m):
+        k = ks[i]
+        est[i] = on[k] - k * spacing
+        v = sg_raw[k]
+        if math.isnan(v) or v > 1e6:
+            v = 1e6
+        sg[i] = min(max(v, 1e-3), 1e6)
+        allow[i] = 2.0 * scale + 4.0 * sg[i] + 2e-4 * k * spacing
+        w_all[i] = 1.0 / sg[i] ** 2
+    support = np.zeros(m, dtype=np.int64)
+    means = np.empty(m)
+    for i in range(m):
+        num = 0.0
+        den = 0.0
+        for j in range(m):
+            if abs(est[i] - est[j]) <= max(allow[i], allow[j]):
+                support[i] += 1
+                num += w_all[j] * est[j]
+                den += w_all[j]
+        means[i] = num / den
+    top = support.max()
+    centre = math.inf
+    for i in range(m):
+        if support[i] == top and means[i] < centre:
+            centre = means[i]
+    n_ok = 0
+    sw = 0.0
+    swe = 0.0
+    for i in range(m):
+        if abs(est[i] - centre) <= allow[i]:
+            n_ok += 1
+    if n_ok < min_bursts:
+        return False
+    ok = np.zeros(m, dtype=np.bool_)
+    for i in range(m):
+        ok[i] = abs(est[i] - centre) <= allow[i]
+    for i in range(m):
+        if ok[i]:
+            wt = 1.0 / sg[i] ** 2
+            sw += wt
+            swe += wt * est[i]
+    t0 = swe / sw
+    s0 = 1.0 / math.sqrt(sw)
+    if n_ok > 1:
+        chi = 0.0
+        for i in range(m):
+            if ok[i]:
+                chi += (1.0 / sg[i] ** 2) * (est[i] - t0) ** 2
+        chi2 = chi / (n_ok - 1)
+        s0 *= math.sqrt(max(1.0, chi2))
+    s0 = math.hypot(s0, model_sigma * scale)
+    snr_ok = np.empty(n_ok)
+    strength = 0.0
+    row[:] = np.nan
+    c = 0
+    for i in range(m):
+        if ok[i]:
+            k = ks[i]
+            row[k] = on[k]
+            snr_ok[c] = snr[k]
+            strength += fst[k]
+            c += 1
+    res[0] = t0
+    res[1] = s0
+    res[2] = _median_py(snr_ok, n_ok)
+    res[3] = n_ok / k_b
+    res[4] = n_ok
+    res[5] = strength
+    return True
+
+
+def _onset_flags_py(
+    e: np.ndarray,
+    t0: float,
+    hop: int,
+    n_win: int,
+    near: int,
+    pre_run: int,
+    rise: float,
+    quiet: float,
+    reverb_ratio: float,
+) -> int:
+    """``changepoint._before_onset_flags``: bit 0 ``ambiguous_first_path``, bit 1
+    ``reverb_limited`` (the caller maps them to the flag bits)."""
+    end = int(t0 - n_win) // hop
+    lo_near = end - near
+    lo_far = end - 2 * near
+    if lo_far < 0 or end <= lo_near + pre_run:
+        return 0
+    far = 0.0
+    for i in range(lo_far, lo_near):
+        far += e[i]
+    far /= lo_near - lo_far
+    top = -math.inf
+    for i in range(lo_near, end - pre_run + 1):
+        acc = 0.0
+        for j in range(pre_run):
+            acc += e[i + j] * (1.0 / pre_run)
+        top = max(top, acc)
+    out = 0
+    if far > 0 and top > rise * far:
+        out |= 1
+    if quiet > 0 and far > reverb_ratio * quiet:
+        out |= 2
+    return out
+
+
+def _beeps_py(
+    x: np.ndarray,
+    hr: np.ndarray,
+    half: int,
+    anchors: np.ndarray,
+    i_start: int,
+    clip_idx: np.ndarray,
+    mask: np.ndarray,
+    qt: np.ndarray,
+    n_base: int,
+    n_par: int,
+    qt_dc: np.ndarray,
+    n_base_dc: int,
+    cols_dc: np.ndarray,
+    ipar: np.ndarray,
+    fpar: np.ndarray,
+    e: np.ndarray,
+    found: np.ndarray,
+    n_found: np.ndarray,
+    out: np.ndarray,
+    rows: np.ndarray,
+    n_rows: np.ndarray,
+) -> int:
+    """``changepoint.detect_changepoint``'s loop over beep anchors: for each, the bursts'
+    band-limited stretches (:func:`_fir_py`), edge statistics (:func:`_edge_stat_py`),
+    the joint first edge, each burst's stage-2 fit (:func:`_refine_py`), the bursts
+    combined (:func:`_combine_py`) and the flags from the band energy before the onset.
+
+    ``ipar``: pre, post, u0, width, margin, k_b, sep, min_bursts, n_coarse, n_fine,
+    background, hop, n_win, near, pre_run, lo_off, hi_off; ``fpar``: spacing, f_min,
+    f_joint, h (stage 2's half range), fs, w, taper_s, burst_s, scale, model_sigma,
+    quiet, rise, reverb_ratio, low_snr_db. ``found`` (sorted, ``n_found[0]`` used) holds
+    the onsets found so far; each row appends ``[onset, sigma, snr_db, confidence,
+    n_ok, strength, flag bits]`` to ``out`` and the kept bursts' onsets to ``rows``.
+
+    Stretches holding clipped samples (``clip_idx``, sorted; ``mask`` the recording's
+    clip mask) are handled as ``changepoint._fit_beep`` does: the edge statistic also on
+    the raw samples with the clipped ones left out and a constant and slope fitted
+    (``qt_dc``, ``cols_dc``: that model's integer-grid bases), the onset refined on them.
+
+    Returns the index of the first anchor not done: ``len(anchors)``, or an anchor the
+    caller must do with the reference code (a system was not positive definite).
+    """
+    pre, post, u0, width, margin, k_b, sep, min_bursts = (
+        ipar[0],
+        ipar[1],
+        ipar[2],
+        ipar[3],
+        ipar[4],
+        ipar[5],
+        ipar[6],
+        ipar[7],
+    )
+    n_coarse, n_fine, background, hop, n_win, near, pre_run = (
+        ipar[8],
+        ipar[9],
+        ipar[10],
+        ipar[11],
+        ipar[12],
+        ipar[13],
+        ipar[14],
+    )
+    lo_off, hi_off = ipar[15], ipar[16]
+    spacing, f_min, f_joint, h, fs, w = fpar[0], fpar[1], fpar[2], fpar[3], fpar[4], fpar[5]
+    taper_s, burst_s, scale, model_sigma = fpar[6], fpar[7], fpar[8], fpar[9]
+    quiet, rise, reverb_ratio, low_snr_db = fpar[10], fpar[11], fpar[12], fpar[13]
+    scale_raw, f_raw_min = fpar[14], fpar[15]
+    n_par_dc = cols_dc.shape[1]
+    n_cols_dc = (4 if background else 2) + 2
+    raw = np.zeros(width - 1 + 2 * margin)
+    f_raw = np.zeros(width)
+    clipped = np.zeros(k_b, dtype=np.bool_)
+    n = x.shape[0]
+    u1 = u0 + width - 1
+    n_cols = 4 if background else 2
+    seg_len = u1 - u0 + 2 * margin
+    segs = np.zeros((k_b, seg_len))
+    lens = np.zeros(k_b, dtype=np.int64)
+    offs = np.zeros(k_b, dtype=np.int64)
+    ps = np.zeros(k_b, dtype=np.int64)
+    stats = np.zeros((k_b, width))
+    widened = np.zeros((k_b, width))
+    joint = np.zeros(width)
+    on = np.zeros(k_b)
+    sg = np.zeros(k_b)
+    snr = np.zeros(k_b)
+    fst = np.zeros(k_b)
+    have = np.zeros(k_b, dtype=np.bool_)
+    res = np.zeros(6)
+    row = np.zeros(k_b)
+    for i in range(i_start, anchors.shape[0]):
+        a = anchors[i]
+        nf = n_found[0]
+        # an anchor whose search window holds a beep onset found already
+        j_f = np.searchsorted(found[:nf], a + lo_off)
+        if j_f < nf and found[j_f] <= a + hi_off:
+            continue
+        for k in range(k_b):
+            p = int(np.rint(a + k * spacing))
+            s0 = max(0, p + u0 - margin)
+            s1 = min(n, p + u1 + margin)
+            cnt = max(s1 - s0, 0)
+            y = _fir_py(x, hr, half, s0, cnt)
+            segs[k, :cnt] = y
+            lens[k] = cnt
+            offs[k] = s0
+            ps[k] = p
+            stats[k, :] = 0.0
+            lo = max(p + u0 - s0, pre)
+            hi = min(p + u1 - s0, cnt - post - 4)
+            if hi >= lo:
+                fk = _edge_stat_py(segs[k, lo - pre : hi + post], qt, n_base, n_par)
+                j0 = lo + s0 - p - u0
+                stats[k, j0 : j0 + fk.shape[0]] = fk
+            if _any_in(clip_idx, s0, s1):
+                # the raw samples, clipped ones left out, constant and slope fitted
+                for ll in range(cnt):
+                    raw[ll] = x[s0 + ll]
+                f_raw[:] = 0.0
+                if hi >= lo:
+                    sub = raw[lo - pre : hi + post]
+                    if _any_in(clip_idx, s0 + lo - pre, s0 + hi + post):
+                        keep = np.empty(sub.shape[0])
+                        for ll in range(sub.shape[0]):
+                            keep[ll] = 0.0 if mask[s0 + lo - pre + ll] else 1.0
+                        fk, ok = _masked_stat_py(sub, keep, cols_dc)
+                        if not ok:
+                            return i
+                    else:
+                        fk = _edge_stat_py(sub, qt_dc, n_base_dc, n_par_dc)
+                    j0 = lo + s0 - p - u0
+                    f_raw[j0 : j0 + fk.shape[0]] = fk
+                if f_raw.max() >= f_raw_min:
+                    for j in range(width):
+                        stats[k, j] = scale_raw * f_raw[j]
+            _widen_py(stats[k], 2, widened[k])
+            # No onset can gather min_bursts bursts reaching f_min any more: the anchor
+            # gives no beep (the reference finds none either), skip its other bursts.
+            top = 0
+            for j in range(width):
+                c = 0
+                for k2 in range(k + 1):
+                    if widened[k2, j] >= f_min:
+                        c += 1
+                top = max(top, c)
+            if top + (k_b - 1 - k) < min_bursts:
+                break
+        if top + (k_b - 1 - k) < min_bursts:
+            continue
+        any_pos = False
+        for j in range(width):
+            v = widened[0, j]
+            for k in range(1, k_b):
+                v += widened[k, j]
+            c = 0
+            for k in range(k_b):
+                if widened[k, j] >= f_min:
+                    c += 1
+            if v > 0:
+                any_pos = True
+            joint[j] = v if c >= min_bursts else 0.0
+        if not any_pos:
+            continue
+        u = _first_edge_py(joint, 0.1, f_joint, sep)
+        if joint[u] < f_joint or not (sep <= u < width - sep):
+            continue
+        failed = False
+        for k in range(k_b):
+            have[k] = False
+            clipped[k] = False
+            j0, j1 = max(0, u - 2), min(width, u + 3)
+            jb = j0
+            for j in range(j0 + 1, j1):
+                if stats[k, j] > stats[k, jb]:
+                    jb = j
+            if stats[k, jb] < f_min:
+                continue
+            a_k = ps[k] + u0 + jb
+            if _any_in(clip_idx, a_k - 2 * pre, a_k + 2 * post):
+                # refined on the raw samples, clipped ones left out (refine_onset, dc)
+                clipped[k] = True
+                r0 = max(0, a_k - 4 * pre - post)
+                r1 = min(n, a_k + 4 * post + pre)
+                a_r = a_k - r0
+                i0 = max(0, int(math.floor(a_r - h)) - pre)
+                i1 = min(r1 - r0, int(math.ceil(a_r + h)) + post)
+                m = 0
+                for t in range(i0, i1):
+                    if not mask[r0 + t]:
+                        m += 1
+                if m >= 8 + 2 * n_cols_dc:
+                    nn = np.empty(m)
+                    sv = np.empty(m)
+                    cv = np.empty(m)
+                    sr = np.empty(m)
+                    c = 0
+                    segsq = 0.0
+                    for t in range(i0, i1):
+                        if not mask[r0 + t]:
+                            nn[c] = float(t)
+                            sr[c] = x[r0 + t]
+                            segsq += sr[c] * sr[c]
+                            c += 1
+                    nuis = np.empty((m, n_cols_dc - 2))
+                    span = max(nn[m - 1] - nn[0], 1.0)
+                    for ll in range(m):
+                        sv[ll] = math.sin(w * nn[ll])
+                        cv[ll] = math.cos(w * nn[ll])
+                        c = 0
+                        if background:
+                            nuis[ll, 0] = sv[ll]
+                            nuis[ll, 1] = cv[ll]
+                            c = 2
+                        nuis[ll, c] = 1.0
+                        nuis[ll, c + 1] = (nn[ll] - nn[0]) / span - 0.5
+                    r = _refine_py(
+                        sr,
+                        nn,
+                        nuis,
+                        sv,
+                        cv,
+                        segsq,
+                        float(a_r),
+                        h,
+                        n_coarse,
+                        n_fine,
+                        fs,
+                        taper_s,
+                        burst_s,
+                    )
+                    if r[0] != 1.0:
+                        failed = True
+                        break
+                    rss, tau, amp, perp2 = r[2], r[1], math.hypot(r[3], r[4]), r[5]
+                    dof = max(m - n_cols_dc - 1, 1)
+                    noise_var = max(rss / dof, 1e-30)
+                    info = perp2 / noise_var
+                    on[k] = tau + r0
+                    sg[k] = 1.0 / math.sqrt(info) if info > 0 else math.inf
+                    snr[k] = 10.0 * math.log10(max(0.5 * amp * amp / noise_var, 1e-30))
+                    fst[k] = stats[k, jb]
+                    have[k] = True
+                    continue
+            a_loc = a_k - offs[k]
+            seg = segs[k, : lens[k]]
+            i0 = max(0, int(math.floor(a_loc - h)) - pre)
+            i1 = min(lens[k], int(math.ceil(a_loc + h)) + post)
+            m = i1 - i0
+            nn = np.empty(m)
+            sv = np.empty(m)
+            cv = np.empty(m)
+            nuis = np.empty((m, 2 if background else 0))
+            segsq = 0.0
+            for ll in range(m):
+                t = float(i0 + ll)
+                nn[ll] = t
+                sv[ll] = math.sin(w * t)
+                cv[ll] = math.cos(w * t)
+                if background:
+                    nuis[ll, 0] = sv[ll]
+                    nuis[ll, 1] = cv[ll]
+                segsq += seg[i0 + ll] * seg[i0 + ll]
+            r = _refine_py(
+                seg[i0:i1],
+                nn,
+                nuis,
+                sv,
+                cv,
+                segsq,
+                float(a_loc),
+                h,
+                n_coarse,
+                n_fine,
+                fs,
+                taper_s,
+                burst_s,
+            )
+            if r[0] != 1.0:
+                failed = True
+                break
+            rss, tau, amp, perp2 = r[2], r[1], math.hypot(r[3], r[4]), r[5]
+            dof = max(m - n_cols - 1, 1)
+            noise_var = max(rss / dof, 1e-30)
+            info = perp2 / noise_var
+            on[k] = tau + offs[k]
+            sg[k] = 1.0 / math.sqrt(info) if info > 0 else math.inf
+            snr[k] = 10.0 * math.log10(max(0.5 * amp * amp / noise_var, 1e-30))
+            fst[k] = stats[k, jb]
+            have[k] = True
+        if failed:
+            return i
+        if not _combine_py(
+            on, sg, snr, fst, have, spacing, scale, min_bursts, model_sigma, res, row
+        ):
+            continue
+        t0 = res[0]
+        fl = 0
+        if res[4] < k_b:
+            fl |= 4
+        if res[2] < low_snr_db:
+            fl |= 8
+        for k in range(k_b):
+            if clipped[k] and not math.isnan(row[k]):
+                fl |= 16
+        fl |= _onset_flags_py(e, t0, hop, n_win, near, pre_run, rise, quiet, reverb_ratio)
+        nr = n_rows[0]
+        for c in range(6):
+            out[nr, c] = res[c]
+        out[nr, 6] = fl
+        rows[nr, :] = row
+        n_rows[0] = nr + 1
+        j_f = np.searchsorted(found[:nf], t0)
+        for c in range(nf, j_f, -1):
+            found[c] = found[c - 1]
+        found[j_f] = t0
+        n_found[0] = nf + 1
+    return anchors.shape[0]
+
+
+def _any_in(idx: np.ndarray, a: int, b: int) -> bool:
+    """Whether the sorted ``idx`` holds a value in ``[max(a, 0), b)``."""
+    if idx.shape[0] == 0:
+        return False
+    j = np.searchsorted(idx, max(a, 0))
+    return j < idx.shape[0] and idx[j] < b
+
+
+def _all_finite_py(x: np.ndarray) -> bool:
+    """Whether every sample of ``x`` is finite (one pass, no temporary array)."""
+    acc = 0.0
+    for i in range(x.shape[0]):
+        acc += x[i] * 0.0  # NaN for a NaN or an infinity, else 0
+    return acc == 0.0
+
+
+def _change_points_py(
+    e: np.ndarray, floor: np.ndarray, gap: int, nb: int, thr_f: float, thr_r: float
+) -> np.ndarray:
+    """``changepoint._change_points`` (the same arithmetic per frame): frames where ``e``
+    first exceeds both ``thr_f`` times the floor and ``thr_r`` times the mean of the
+    ``nb`` frames ending ``gap`` frames earlier."""
+    n = e.shape[0]
+    cs = np.empty(n + 1)
+    cs[0] = 0.0
+    acc = 0.0
+    for i in range(n):
+        acc += e[i]
+        cs[i + 1] = acc
+    out = np.empty(n, dtype=np.int64)
+    m = 0
+    prev = False
+    for i in range(n):
+        fl = max(floor[i], 1e-30)
+        hi = max(i - gap, 0)
+        lo = max(i - gap - nb, 0)
+        cnt = hi - lo
+        pre = (cs[hi] - cs[lo]) / max(cnt, 1) if cnt > 0 else fl
+        thr = max(fl * thr_f, pre * thr_r)
+        above = e[i] > thr
+        if above and not prev:
+            out[m] = i
+            m += 1
+        prev = above
+    return out[:m]
+
+
+def _rails_py(x: np.ndarray, t_hi: float, t_lo: float) -> tuple[np.ndarray, np.ndarray]:
+    """Indices of the samples at or above ``t_hi`` and at or below ``t_lo`` (compared in
+    float64). Blocks of 4096 samples are counted first (a loop that vectorises); only
+    blocks with hits are searched."""
+    n = x.shape[0]
+    hi = np.empty(64, dtype=np.int64)
+    lo = np.empty(64, dtype=np.int64)
+    a = 0
+    b = 0
+    for s0 in range(0, n, 4096):
+        s1 = min(n, s0 + 4096)
+        c = 0
+        for i in range(s0, s1):
+            v = float(x[i])
+            c += (1 if v >= t_hi else 0) + (1 if v <= t_lo else 0)
+        if c == 0:
+            continue
+        if a + c > hi.shape[0] or b + c > lo.shape[0]:
+            m = 2 * max(hi.shape[0], a + c, b + c)
+            hi2 = np.empty(m, dtype=np.int64)
+            lo2 = np.empty(m, dtype=np.int64)
+            hi2[:a] = hi[:a]
+            lo2[:b] = lo[:b]
+            hi, lo = hi2, lo2
+        for i in range(s0, s1):
+            v = float(x[i])
+            if v >= t_hi:
+                hi[a] = i
+                a += 1
+            if v <= t_lo:
+                lo[b] = i
+                b += 1
+    return hi[:a].copy(), lo[:b].copy()
+
+
+def _any_in(idx: np.ndarray, a: int, b: int) -> bool:
+    """Whether the sorted ``idx`` holds a value in ``[max(a, 0), b)``."""
+    if idx.shape[0] == 0:
+        return False
+    j = np.searchsorted(idx, max(a, 0))
+    return j < idx.shape[0] and idx[j] < b
+
+
+def _all_finite_py(x: np.ndarray) -> bool:
+    """Whether every sample of ``x`` is finite (one pass, no temporary array)."""
+    acc = 0.0
+    for i in range(x.shape[0]):
+        acc += x[i] * 0.0  # NaN for a NaN or an infinity, else 0
+    return acc == 0.0
+
+
+def _change_points_py(
+    e: np.ndarray, floor: np.ndarray, gap: int, nb: int, thr_f: float, thr_r: float
+) -> np.ndarray:
+    """``changepoint._change_points`` (the same arithmetic per frame): frames where ``e``
+    first exceeds both ``thr_f`` times the floor and ``thr_r`` times the mean of the
+    ``nb`` frames ending ``gap`` frames earlier."""
+    n = e.shape[0]
+    cs = np.empty(n + 1)
+    cs[0] = 0.0
+    acc = 0.0
+    for i in range(n):
+        acc += e[i]
+        cs[i + 1] = acc
+    out = np.empty(n, dtype=np.int64)
+    m = 0
+    prev = False
+    for i in range(n):
+        fl = max(floor[i], 1e-30)
+        hi = max(i - gap, 0)
+        lo = max(i - gap - nb, 0)
+        cnt = hi - lo
+        pre = (cs[hi] - cs[lo]) / max(cnt, 1) if cnt > 0 else fl
+        thr = max(fl * thr_f, pre * thr_r)
+        above = e[i] > thr
+        if above and not prev:
+            out[m] = i
+            m += 1
+        prev = above
+    return out[:m]
+
+
+def _rails_py(x: np.ndarray, t_hi: float, t_lo: float) -> tuple[np.ndarray, np.ndarray]:
+    """Indices of the samples at or above ``t_hi`` and at or below ``t_lo`` (compared in
+    float64)."""
+    n_hi = 0
+    n_lo = 0
+    for i in range(x.shape[0]):
+        v = float(x[i])
+        n_hi += 1 if v >= t_hi else 0
+        n_lo += 1 if v <= t_lo else 0
+    hi = np.empty(n_hi, dtype=np.int64)
+    lo = np.empty(n_lo, dtype=np.int64)
+    a = 0
+    b = 0
+    if n_hi + n_lo:
+        for i in range(x.shape[0]):
+            v = float(x[i])
+            if v >= t_hi:
+                hi[a] = i
+                a += 1
+            if v <= t_lo:
+                lo[b] = i
+                b += 1
+    return hi, lo
+
+
+def _dedupe_py(starts: np.ndarray, rising: np.ndarray, min_rise: int, hop: int) -> np.ndarray:
+    """``detect_changepoint``'s anchors: starts with ``min_rise`` rising places, each more
+    than ``hop`` from the last 8 kept ones."""
+    out = np.empty(starts.shape[0], dtype=np.int64)
+    m = 0
+    for i in range(starts.shape[0]):
+        if rising[i] < min_rise:
+            continue
+        a = starts[i]
+        ok = True
+        for j in range(max(0, m - 8), m):
+            if abs(a - out[j]) <= hop:
+                ok = False
+                break
+        if ok:
+            out[m] = a
+            m += 1
+    return out[:m]
+
+
 _KERNELS = {
     "fir": _fir_py,
     "edge_stat": _edge_stat_py,
     "masked_stat": _masked_stat_py,
     "refine": _refine_py,
     "anchors": _anchors_py,
+    "beeps": _beeps_py,
+    "dedupe": _dedupe_py,
+    "all_finite": _all_finite_py,
+    "change_points": _change_points_py,
+    "rails": _rails_py,
 }
-_HELPERS = (_env, _cholesky, _chol_solve, _reg_solve, _explained, _linspace, _fit_tau)
+_HELPERS = (
+    _env,
+    _cholesky,
+    _chol_solve,
+    _reg_solve,
+    _explained,
+    _linspace,
+    _fit_tau,
+    _fir_py,
+    _edge_stat_py,
+    _refine_py,
+    _widen_py,
+    _first_edge_py,
+    _median_py,
+    _combine_py,
+    _onset_flags_py,
+    _any_in,
+    _masked_stat_py,
+)
+#: Functions whose dot products may be reassociated and fused (vectorised, like numpy's
+#: own); the rest keeps IEEE order.
+_FASTMATH = {
+    "_edge_stat_py": {"reassoc", "contract"},
+    "_fir_py": {"reassoc", "contract"},
+    "_all_finite_py": {"reassoc"},
+}
 
 
 @functools.cache
@@ -476,11 +1215,13 @@ def _compiled(name: str, cache: bool = True):
     g = globals()
     if not isinstance(g["_env"], numba.core.registry.CPUDispatcher):
         for fn in _HELPERS:
-            g[fn.__name__] = numba.njit(cache=True, nogil=True)(fn)
-    # Stage 1's and the FIR's dot products may be reassociated (vectorised, like numpy's
-    # own); the rest keeps IEEE order.
-    fm = {"reassoc", "contract"} if name in ("edge_stat", "fir") else False
-    return numba.njit(cache=cache, nogil=True, fastmath=fm)(_KERNELS[name])
+            fm = _FASTMATH.get(fn.__name__, False)
+            g[fn.__name__] = numba.njit(cache=True, nogil=True, fastmath=fm)(fn)
+    fn = _KERNELS[name]
+    if cache and isinstance(g.get(fn.__name__), numba.core.registry.CPUDispatcher):
+        return g[fn.__name__]  # a helper too: one compiled version
+    fm = _FASTMATH.get(fn.__name__, False)
+    return numba.njit(cache=cache, nogil=True, fastmath=fm)(fn)
 
 
 def call(name: str, *args):

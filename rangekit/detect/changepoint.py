@@ -29,6 +29,7 @@ Notes
 
 from __future__ import annotations
 
+import bisect
 import functools
 import math
 from dataclasses import dataclass, replace
@@ -48,7 +49,10 @@ from rangekit.detect.condition import (
     percentile,
 )
 from rangekit.detect.refine import (
+    N_COARSE,
+    N_FINE,
     EdgeFit,
+    _integer_basis,
     _window,
     edge_statistic,
     fit_edge,
@@ -131,11 +135,21 @@ def _change_points(
         return np.zeros(0, dtype=np.int64)
     if floor is None:
         floor = np.full(len(e), active_floor(e))
-    floor = np.maximum(floor, 1e-30)
     # The recent level ends a window plus the lookback before the frame: a weak direct
     # path followed by stronger reflections rises in two steps within a few ms.
     gap = int(math.ceil(n_win / hop)) + lookback
     nb = 8
+    if len(e) >= _edge_kernels.NUMBA_MIN_SAMPLES // hop:
+        return _edge_kernels.call(
+            "change_points",
+            np.ascontiguousarray(e, dtype=np.float64),
+            np.ascontiguousarray(floor, dtype=np.float64),
+            gap,
+            nb,
+            10 ** (threshold_db / 10),
+            10 ** (rise_db / 10),
+        )
+    floor = np.maximum(floor, 1e-30)
     cs = np.concatenate(([0.0], np.cumsum(e)))
     m = np.arange(len(e))
     hi = np.clip(m - gap, 0, None)
@@ -180,7 +194,7 @@ class _Conditioner:
         (raw without conditioning); ``offset`` is its first sample's index."""
         a, b = max(0, a), min(len(self.x), b)
         if self.taps is None:
-            return self.x[a:b], a
+            return np.asarray(self.x[a:b], dtype=np.float64), a
         h = (len(self.taps) - 1) // 2
         if self.compiled:
             y = _edge_kernels.call("fir", self.x, self._taps_reversed, h, a, max(b - a, 0))
@@ -283,7 +297,7 @@ def _fit_beep(
             # one (biased by a few samples, but found) serves.
             a0, b0 = max(0, p + u0 - margin), min(len(cond.x), p + u1 + margin)
             f_raw = _stat_on(
-                cond.x[a0:b0],
+                np.asarray(cond.x[a0:b0], dtype=np.float64),
                 cond.clipped[a0:b0],
                 True,
                 a0,
@@ -336,7 +350,7 @@ def _fit_beep(
             r0 = max(0, a_k - 4 * pre - post)
             r1 = min(len(cond.x), a_k + 4 * post + pre)
             fit = refine_onset(
-                cond.x[r0:r1],
+                np.asarray(cond.x[r0:r1], dtype=np.float64),
                 fs=fs,
                 beep=beep,
                 a=a_k - r0,
@@ -568,6 +582,23 @@ def _anchor(
     return int(round(c - best_j * spacing)), int(rising[best_j])
 
 
+def _anchor_args(
+    c: np.ndarray, cs: np.ndarray, n_e: int, *, hop: int, n_win: int, beep: Beep, fs: float
+) -> tuple:
+    """Arguments of the ``anchors`` kernel (``_edge_kernels._anchors_py``)."""
+    return (
+        np.ascontiguousarray(c, dtype=np.int64),
+        np.ascontiguousarray(cs, dtype=np.float64),
+        int(n_e),
+        int(hop),
+        max(1, n_win // hop),
+        max(1, int((beep.burst_s * fs - 2 * n_win) / hop)),
+        float(beep.spacing_s * fs),
+        int(beep.n_bursts),
+        float(MIN_RISE_DB),
+    )
+
+
 def _anchors_compiled(
     c: np.ndarray, cs: np.ndarray, n_e: int, *, hop: int, n_win: int, beep: Beep, fs: float
 ) -> list[tuple[int, int]]:
@@ -776,7 +807,7 @@ def detect_changepoint(
     """
     beep = Beep() if beep is None else beep
     fs = V.sample_rate(fs)
-    x = V.signal_1d("x", x)
+    x = _signal(x)
     check_beep_fits(beep, fs=fs)
     k_b = beep.n_bursts
     if min_bursts is None:
@@ -791,52 +822,45 @@ def detect_changepoint(
     # Long recordings: numba is imported by band_energy already; the edge fits' kernels
     # (rangekit.detect._edge_kernels) give the numpy path's numbers to rounding.
     compiled = len(x) >= _edge_kernels.NUMBA_MIN_SAMPLES
-    anchors: list[int] = []
     cs = np.concatenate(([0.0], np.cumsum(e)))
     if compiled:
-        starts = _anchors_compiled(frames * hop, cs, len(e), hop=hop, n_win=n_win, beep=beep, fs=fs)
+        starts = (
+            _edge_kernels.call(
+                "anchors",
+                *_anchor_args(frames * hop, cs, len(e), hop=hop, n_win=n_win, beep=beep, fs=fs),
+            )
+            if k_b > 1
+            else np.stack([frames * hop, np.ones(len(frames), np.int64)], axis=1)
+        )
+        anchors = _edge_kernels.call(
+            "dedupe",
+            np.ascontiguousarray(starts[:, 0]),
+            np.ascontiguousarray(starts[:, 1]),
+            min(2, min_bursts),
+            int(hop),
+        ).tolist()
     else:
         starts = [
             _anchor(m * hop, e, hop=hop, n_win=n_win, spacing=spacing, beep=beep, fs=fs, cs=cs)
             for m in frames.tolist()
         ]
-    for a, n_rise in starts:
-        if n_rise >= min(2, min_bursts) and all(abs(a - b) > hop for b in anchors[-8:]):
-            anchors.append(a)
+        anchors = []
+        for a, n_rise in starts:
+            if n_rise >= min(2, min_bursts) and all(abs(a - b) > hop for b in anchors[-8:]):
+                anchors.append(a)
     cond = _conditioner(x, fs=fs, beep=beep, condition=condition, compiled=compiled)
     live = floor[floor > 1e-12 * float(floor.max())] if len(floor) and floor.max() > 0 else floor
     quiet = float(percentile(live, 10.0)) if len(live) else 0.0
     oob = _out_of_band(x, cond) if condition else False
-    rows = []
-    look = int(round(LOOKBACK_S * fs))
-    sep = max(2, int(round(beep.taper_s * fs)))
-    found: list[float] = []
-    for a in anchors:
-        # An anchor whose search window holds a beep onset already found (away from the
-        # window's ends) would find that beep again: the beep's other change points.
-        lo_a, hi_a = a - n_win // 2 - look + sep, a + n_win + hop - sep
-        if any(lo_a <= t <= hi_a for t in found):
-            continue
-        fits, clipped = _fit_beep(
-            cond,
-            a,
-            fs=fs,
-            beep=beep,
-            n_win=n_win,
-            hop=hop,
-            background=background,
-            min_bursts=min_bursts,
-            compiled=compiled,
-        )
-        res = _combine(fits, clipped, spacing=spacing, scale=fs / 44100.0, min_bursts=min_bursts)
-        if res is None:
-            continue
-        t0, s0, snr, conf, row, flags, strength = res
-        found.append(t0)
-        flags |= _before_onset_flags(e, t0, hop=hop, n_win=n_win, fs=fs, quiet=quiet)
-        if oob:
-            flags |= flag_bit("dc_or_lowband")
-        rows.append((t0, s0, snr, conf, row, flags, strength))
+    kw = {
+        "fs": fs, "beep": beep, "n_win": n_win, "hop": hop, "background": background,
+        "min_bursts": min_bursts, "quiet": quiet, "oob": oob,
+    }  # fmt: skip
+    if compiled:
+        rows = _rows_compiled(cond, np.asarray(anchors, dtype=np.int64), e, **kw)
+    else:
+        found = _Found()
+        rows = [r for a in anchors if (r := _beep_row(cond, a, e, found, **kw)) is not None]
     rows = _resolve_aliases(rows, tol=2.0 * fs / 44100.0 + 2.0)
     if not rows:
         return Arrivals.empty(fs=fs, n_bursts=k_b, detector="changepoint")
@@ -859,6 +883,180 @@ def detect_changepoint(
         drop = order[: len(arr) - expected]
         arr = arr.take(np.setdiff1d(np.arange(len(arr)), drop))
     return arr
+
+
+class _Found:
+    """Onsets found so far, sorted: is one within ``[lo, hi]``?"""
+
+    def __init__(self) -> None:
+        self.t: list[float] = []
+
+    def within(self, lo: float, hi: float) -> bool:
+        j = bisect.bisect_left(self.t, lo)
+        return j < len(self.t) and self.t[j] <= hi
+
+    def add(self, t: float) -> None:
+        bisect.insort(self.t, t)
+
+
+def _beep_row(
+    cond: _Conditioner,
+    a: int,
+    e: np.ndarray,
+    found: _Found,
+    *,
+    fs: float,
+    beep: Beep,
+    n_win: int,
+    hop: int,
+    background: bool,
+    min_bursts: int,
+    quiet: float,
+    oob: bool,
+) -> tuple | None:
+    """The beep of anchor ``a`` (numpy reference): ``(onset, sigma, snr_db, confidence,
+    burst_onsets, flags, strength)``, or None. ``found`` gains its onset."""
+    # An anchor whose search window holds a beep onset already found (away from the
+    # window's ends) would find that beep again: the beep's other change points.
+    look = int(round(LOOKBACK_S * fs))
+    sep = max(2, int(round(beep.taper_s * fs)))
+    if found.within(a - n_win // 2 - look + sep, a + n_win + hop - sep):
+        return None
+    fits, clipped = _fit_beep(
+        cond,
+        a,
+        fs=fs,
+        beep=beep,
+        n_win=n_win,
+        hop=hop,
+        background=background,
+        min_bursts=min_bursts,
+        compiled=cond.compiled,
+    )
+    res = _combine(
+        fits, clipped, spacing=beep.spacing_s * fs, scale=fs / 44100.0, min_bursts=min_bursts
+    )
+    if res is None:
+        return None
+    t0, s0, snr, conf, row, flags, strength = res
+    found.add(t0)
+    flags |= _before_onset_flags(e, t0, hop=hop, n_win=n_win, fs=fs, quiet=quiet)
+    if oob:
+        flags |= flag_bit("dc_or_lowband")
+    return (t0, s0, snr, conf, row, flags, strength)
+
+
+def _rows_compiled(
+    cond: _Conditioner,
+    anchors: np.ndarray,
+    e: np.ndarray,
+    *,
+    fs: float,
+    beep: Beep,
+    n_win: int,
+    hop: int,
+    background: bool,
+    min_bursts: int,
+    quiet: float,
+    oob: bool,
+) -> list[tuple]:
+    """:func:`_beep_row` of every anchor by one compiled loop (``_edge_kernels._beeps_py``:
+    the same steps, clipped stretches included, equal to rounding); an anchor whose fit
+    is singular is done by :func:`_beep_row` in between, in order."""
+    kw = {
+        "fs": fs, "beep": beep, "n_win": n_win, "hop": hop, "background": background,
+        "min_bursts": min_bursts, "quiet": quiet, "oob": oob,
+    }  # fmt: skip
+    scale = fs / 44100.0
+    pre, post = _window(fs, beep, None, None)
+    look = int(round(LOOKBACK_S * fs))
+    u0, u1 = -(n_win // 2) - look, n_win + hop
+    sep = max(2, int(round(beep.taper_s * fs)))
+    margin = int(math.ceil(48 * fs / 44100.0 + beep.taper_s * fs)) + 8
+    f_min = F_MIN * cond.f_scale ** (2.0 / 3.0)
+    _, _, q_base, qt = _integer_basis(fs, beep, pre, post, background, False)
+    cols_dc, _, q_base_dc, qt_dc = _integer_basis(fs, beep, pre, post, background, True)
+    near = int(round(PRE_NEAR_S * fs / hop))
+    ipar = np.array(
+        [pre, post, u0, u1 - u0 + 1, margin, beep.n_bursts, sep, min_bursts, N_COARSE, N_FINE,
+         int(background), hop, n_win, near, PRE_RUN, -(n_win // 2) - look + sep,
+         n_win + hop - sep],
+        dtype=np.int64,
+    )  # fmt: skip
+    fpar = np.array(
+        [beep.spacing_s * fs, f_min, 0.8 * f_min * min_bursts, 3.0 * scale + 1.0, fs,
+         2.0 * math.pi * beep.f_hz / fs, beep.taper_s, beep.burst_s, scale, MODEL_SIGMA,
+         quiet, 10 ** (PRE_RISE_DB / 10), REVERB_FLOOR_RATIO, LOW_SNR_DB,
+         cond.f_scale ** (2.0 / 3.0), F_MIN],
+        dtype=np.float64,
+    )  # fmt: skip
+    hr = cond._taps_reversed if cond.taps is not None else np.zeros(0)
+    half = (len(cond.taps) - 1) // 2 if cond.taps is not None else 0
+    if cond.clipped is not None:
+        clip_idx, mask = np.flatnonzero(cond.clipped), cond.clipped
+    else:
+        clip_idx, mask = np.zeros(0, np.int64), np.zeros(0, dtype=bool)
+    n_a = len(anchors)
+    found_buf = np.zeros(n_a + 1)
+    n_found = np.zeros(1, dtype=np.int64)
+    out = np.zeros((n_a + 1, 7))
+    burst_rows = np.zeros((n_a + 1, beep.n_bursts))
+    n_rows = np.zeros(1, dtype=np.int64)
+    bits = {
+        1: flag_bit("ambiguous_first_path"), 2: flag_bit("reverb_limited"),
+        4: flag_bit("inconsistent_bursts"), 8: flag_bit("low_snr"), 16: flag_bit("clipped"),
+    }  # fmt: skip
+    rows: list[tuple] = []
+    i, done = 0, 0
+    while i < n_a:
+        i = _edge_kernels.call(
+            "beeps", cond.x, hr, half, anchors, i, clip_idx, mask, qt, q_base.shape[1],
+            qt.shape[0] - q_base.shape[1], qt_dc, q_base_dc.shape[1], cols_dc, ipar, fpar, e,
+            found_buf, n_found, out, burst_rows, n_rows,
+        )  # fmt: skip
+        for r in range(done, int(n_rows[0])):
+            fl = sum(b for k, b in bits.items() if int(out[r, 6]) & k)
+            if oob:
+                fl |= flag_bit("dc_or_lowband")
+            rows.append(
+                (float(out[r, 0]), float(out[r, 1]), float(out[r, 2]), float(out[r, 3]),
+                 burst_rows[r].copy(), fl, float(out[r, 5]))
+            )  # fmt: skip
+        done = int(n_rows[0])
+        if i >= n_a:
+            break
+        # The reference for this anchor (clipped samples in reach, or a singular fit).
+        found = _Found()
+        found.t = found_buf[: n_found[0]].tolist()
+        r = _beep_row(cond, int(anchors[i]), e, found, **kw)
+        if r is not None:
+            rows.append(r)
+            nf = int(n_found[0])
+            found_buf[: nf + 1] = sorted([*found_buf[:nf].tolist(), r[0]])
+            n_found[0] = nf + 1
+        i += 1
+    return rows
+
+
+def _signal(x) -> np.ndarray:
+    """``x`` as a contiguous 1-D array of finite values: float32 and float64 as they are
+    (no float64 copy of a long float32 recording: the kernels read either, and every
+    stretch a fit reads is converted), anything else as float64 (as
+    ``rangekit._validate.signal_1d``)."""
+    a = np.asarray(x)
+    if a.dtype not in (np.float32, np.float64):
+        return V.signal_1d("x", a)
+    if a.ndim != 1:
+        raise V.InvalidParameterError(f"x must be 1-D, got shape {a.shape}")
+    a = np.ascontiguousarray(a)
+    if len(a) >= _edge_kernels.NUMBA_MIN_SAMPLES:
+        finite = _edge_kernels.call("all_finite", a)
+    else:
+        finite = bool(np.all(np.isfinite(a)))
+        a = a.astype(np.float64, copy=False)  # short: the numpy path, in float64
+    if not finite:
+        raise V.InvalidParameterError("x contains NaN or infinite values")
+    return a
 
 
 def _before_onset_flags(

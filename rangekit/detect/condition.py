@@ -34,6 +34,10 @@ import numpy as np
 
 from rangekit import _validate as V
 
+#: Inputs at least this long are scanned by compiled kernels (``_edge_kernels``; numba is
+#: imported for them anyway, see ``rangekit.detect._kernels.NUMBA_MIN_SAMPLES``).
+_NUMBA_MIN_SAMPLES = 1_000_000
+
 __all__ = [
     "DEFAULT_ATTEN_DB",
     "active_floor",
@@ -215,7 +219,9 @@ def clip_mask(
     >>> int(clip_mask(x).sum()), int(clip_mask(np.clip(x, -0.5, 0.5)).sum()) > 100
     (0, True)
     """
-    x = np.asarray(x, dtype=np.float64)
+    x = np.asarray(x)
+    if x.dtype not in (np.float32, np.float64):
+        x = x.astype(np.float64)
     mask = np.zeros(len(x), dtype=bool)
     if len(x) < min_run:
         return mask
@@ -224,7 +230,14 @@ def clip_mask(
     if span <= 0.0:
         return mask
     tol = rel_tol * span
-    for idx, rail in ((np.flatnonzero(x >= hi - tol), hi), (np.flatnonzero(x <= lo + tol), lo)):
+    if len(x) >= _NUMBA_MIN_SAMPLES:  # one pass, no temporaries (numba is loaded then)
+        from rangekit.detect import _edge_kernels
+
+        near_hi, near_lo = _edge_kernels.call("rails", x, hi - tol, lo + tol)
+    else:
+        near_hi = np.flatnonzero(x >= _threshold(hi - tol, x.dtype, up=True))
+        near_lo = np.flatnonzero(x <= _threshold(lo + tol, x.dtype, up=False))
+    for idx, rail in ((near_hi, hi), (near_lo, lo)):
         if rail == 0.0 or len(idx) < min_run:
             continue  # digital silence at a rail is not clipping
         # a run of min_run consecutive indices among the (few) samples at the rail
@@ -233,6 +246,20 @@ def clip_mask(
         if min_run <= 1 or at_rail >= min_count or _runs_at_least(step, min_run - 1).any():
             mask[idx] = True
     return mask
+
+
+def _threshold(t: float, dtype: np.dtype, *, up: bool):
+    """A threshold of ``dtype`` that compares with samples of that dtype as ``t`` (float64)
+    does: for float32, the nearest float32 at or above ``t`` (``up``) or at or below it
+    (a float32 array compared with a Python float compares in float32, NEP 50)."""
+    if dtype != np.float32:
+        return t
+    t32 = np.float32(t)
+    if up and float(t32) < t:
+        t32 = np.nextafter(t32, np.float32(np.inf))
+    elif not up and float(t32) > t:
+        t32 = np.nextafter(t32, np.float32(-np.inf))
+    return t32
 
 
 def _runs_at_least(m: np.ndarray, k: int) -> np.ndarray:
@@ -394,6 +421,9 @@ def out_of_band_ratio(x: np.ndarray, taps: np.ndarray, y: np.ndarray | None = No
     """
     x = np.asarray(x, dtype=np.float64)
     y = bandlimit(x, taps) if y is None else y
-    kept = float(y @ y)
-    removed = float((x - y) @ (x - y))
+    # einsum, not BLAS: a multithreaded BLAS dot of 64k samples can wait milliseconds
+    # for its threads on a busy machine.
+    d = x - y
+    kept = float(np.einsum("i,i->", y, y))
+    removed = float(np.einsum("i,i->", d, d))
     return removed / kept if kept > 0 else (math.inf if removed > 0 else 0.0)

@@ -219,3 +219,72 @@ def test_fir_kernel_equals_bandlimit():
             ref = bandlimit(x[a0:b0], taps)[a1 - a0 : a1 - a0 + max(b1 - a1, 0)]
             assert off == a1
             np.testing.assert_allclose(y, ref, rtol=0, atol=1e-12)
+
+
+# ------------------------------------------- the compiled beep loop (issue 20, item 2)
+
+
+def _tiled(seconds: float, seed: int = 0) -> np.ndarray:
+    sim = render_beepbeep(pair_devices(3.0, self_distance_m=0.1), snr_db=20, rng=seed)
+    one = sim.recordings[0]
+    rng = np.random.default_rng(seed)
+    x = float(np.std(one[:2000])) * rng.standard_normal(int(seconds * FS))
+    for k in range(int(seconds // 3) - 1):
+        s0 = int((3 * k + rng.uniform(-0.5, 0.5) + 0.5) * FS)
+        x[s0 : s0 + len(one)] += one
+    return x
+
+
+def test_float32_input_on_the_compiled_path_equals_the_numpy_path(monkeypatch):
+    """float32 samples are read as they are (no float64 copy): the same detections."""
+    x = _tiled(12.0).astype(np.float32)
+    ref, fast = _detect_both(x, monkeypatch)
+    assert len(ref) >= 6
+    _assert_same(ref, fast)
+    _assert_same(ref, cp.detect_changepoint(x.astype(np.float64), fs=FS))
+
+
+def test_unconditioned_detections_equal(monkeypatch):
+    _assert_same(*_detect_both(_tiled(9.0, seed=1), monkeypatch, condition=False))
+
+
+def test_an_anchor_left_to_the_reference_keeps_the_order(monkeypatch):
+    """When the compiled loop hands an anchor back (a singular fit), the reference does it
+    and the loop goes on: the same rows as without the hand-back."""
+    x = _tiled(12.0, seed=2)
+    monkeypatch.setattr(K, "NUMBA_MIN_SAMPLES", 0)
+    plain = cp.detect_changepoint(x, fs=FS)
+    real = K.call
+    handed = []
+
+    def call(name, *args):
+        if name == "beeps" and args[4] in (0, 1) and args[4] not in handed:
+            handed.append(args[4])
+            return args[4]  # "do anchor i yourself"
+        return real(name, *args)
+
+    monkeypatch.setattr(K, "call", call)
+    _assert_same(plain, cp.detect_changepoint(x, fs=FS))
+    assert handed == [0, 1]
+
+
+def test_change_point_and_rail_kernels_equal_numpy(monkeypatch):
+    from rangekit.detect.condition import clip_mask
+
+    rng = np.random.default_rng(5)
+    e = rng.exponential(1.0, 50_000) * np.repeat(rng.uniform(0.5, 40.0, 50), 1000)
+    floor = cp._floor(e, fs=FS, hop=32)
+    kw = {"n_win": 128, "hop": 32, "threshold_db": 6.0, "rise_db": 10.0, "lookback": 6}
+    monkeypatch.setattr(K, "NUMBA_MIN_SAMPLES", 10**12)
+    ref = cp._change_points(e, floor=floor, **kw)
+    monkeypatch.setattr(K, "NUMBA_MIN_SAMPLES", 0)
+    np.testing.assert_array_equal(cp._change_points(e, floor=floor, **kw), ref)
+    assert len(ref) > 10
+    from rangekit.detect import condition
+
+    x = np.clip(rng.standard_normal(1_200_000), -3.0, 2.5).astype(np.float32)
+    m = clip_mask(x)  # the compiled rails (long input), float32 compared as float64
+    assert m.sum() > 0
+    monkeypatch.setattr(condition, "_NUMBA_MIN_SAMPLES", 10**12)
+    np.testing.assert_array_equal(clip_mask(x), m)
+    np.testing.assert_array_equal(clip_mask(x.astype(np.float64)), m)
