@@ -54,3 +54,18 @@ def test_default_window_is_24_samples_and_the_taper_plus_8():
         assert post == math.ceil(BEEP.taper_s * fs + 8 * scale)
         assert post > BEEP.taper_s * fs  # the whole rise is in the window
     assert _window(FS, BEEP, 5, 7) == (5, 7)
+
+
+def test_masked_window_needs_8_plus_2_samples_per_column():
+    """Stage 2 with the window masked down to 8 + 2 * 2 = 12 samples still fits; 11 do not."""
+    rng = np.random.default_rng(3)
+    onset = 500.3
+    x = beep_continuous((np.arange(2000) - onset) / FS, beep=BEEP)
+    x = x + 0.01 * rng.standard_normal(len(x))
+    for keep, fits in ((12, True), (13, True), (11, False)):
+        mask = np.ones(len(x), dtype=bool)
+        mask[500 : 500 + keep] = False
+        fit = refine_onset(x, fs=FS, beep=BEEP, a=500, mask=mask)
+        assert (fit is not None) == fits, keep
+        if fits:
+            assert fit.n_masked > 0

@@ -14,7 +14,7 @@ import pytest
 
 from rangekit.errors import InvalidParameterError
 from rangekit.ranging import range_beepbeep
-from rangekit.ranging.beepbeep import DEFAULT_CLOCK_PPM
+from rangekit.ranging.beepbeep import DEFAULT_CLOCK_PPM, withhold_doubtful
 from rangekit.types import Arrivals
 
 FS = 44100.0
@@ -78,3 +78,19 @@ def test_order_flag_when_both_beeps_arrive_together():
     same_b = [_arr([1000.0, 21343.0]), _arr([5343.0, 5343.0])]
     assert "order" in range_beepbeep(same_b, speed_m_s=C).ranges[0].flags
     assert "order" not in range_beepbeep(OK, speed_m_s=C).ranges[0].flags
+
+
+def test_clock_tolerance_domain_is_0_to_10000_ppm():
+    assert range_beepbeep(OK, speed_m_s=C, clock_ppm=1e4).ranges[0].sigma_m > 0
+    with pytest.raises(InvalidParameterError, match="clock_ppm"):
+        range_beepbeep(OK, speed_m_s=C, clock_ppm=1.0001e4)
+
+
+def test_withhold_leaves_rows_without_a_distance_or_already_withheld():
+    none = {"distance_m": None, "sigma_m": None, "flags": ["low_snr"]}
+    assert withhold_doubtful(none) is False and none["flags"] == ["low_snr"]
+    nan = {"distance_m": math.nan, "sigma_m": 0.01, "flags": ["clipped"]}
+    assert withhold_doubtful(nan) is False and nan["distance_m"] is not None
+    row = {"distance_m": 2.0, "sigma_m": 0.01, "flags": ["clipped"]}
+    assert withhold_doubtful(row) is True
+    assert withhold_doubtful(row) is False and row["flags"] == ["clipped", "withheld"]
