@@ -1,0 +1,307 @@
+"""Mutation check: do a module's own tests notice when its code is changed?
+
+For a module of :data:`TESTS` the script lists every mutation site of its source (AST):
+
+* comparisons: ``<`` <-> ``<=``, ``>`` <-> ``>=``, ``==`` <-> ``!=``, ``is`` <-> ``is not``,
+  ``in`` <-> ``not in`` (one operator of a chained comparison at a time);
+* signs: binary ``+`` <-> ``-``, ``*`` <-> ``/``, unary ``-x`` -> ``x``;
+* constants: an integer ``n`` -> ``n + 1``, a float ``0.0`` -> ``1.0`` and ``x`` -> ``2 x``,
+  ``True`` <-> ``False``.
+
+Docstrings, type annotations and ``__all__`` are not mutated. A seeded sample of the sites
+(``--n``, default 40 per module, ``--seed``) is applied one at a time to a private copy of
+the repository (``rangekit/``, ``cli/`` as ``rangekit_cli``, ``tests/``, ``pyproject.toml``
+in a temporary folder that comes first on ``PYTHONPATH``; the working tree is never
+written), and the module's own tests (:data:`TESTS`, with the module's doctests) run with
+``pytest -x -q`` under a per-mutant timeout. A mutant is *killed* when the tests fail,
+error or time out, and *survives* when they pass; the score is killed / sampled. An
+unmutated baseline run must pass first. Survivors are printed with their line, so a blind
+test can be written against each (some survivors are equivalent mutants: the changed code
+computes the same result, e.g. a ``<`` vs ``<=`` on a float that is never equal).
+
+Not part of CI: it runs the tests once per mutant (minutes per module). Run it niced on
+shared machines::
+
+    nice -n 10 python benchmarks/mutation.py rangekit/ranging/beepbeep.py --n 40 --seed 0
+
+With no module, every module of :data:`TESTS` is checked. The last line of each module is
+an ``@row`` (``benchmarks/_report.py``) with the score; ``--json FILE`` writes every
+mutant's outcome. The numbers are in ``docs/evidence.md``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import ast
+import json
+import os
+import pathlib
+import shutil
+import signal
+import subprocess
+import sys
+import tempfile
+import time
+from dataclasses import asdict, dataclass
+
+import numpy as np
+
+ROOT = pathlib.Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
+from _report import row
+
+#: Module -> its own tests (the module's doctests are added to these).
+TESTS: dict[str, tuple[str, ...]] = {
+    "rangekit/ranging/beepbeep.py": (
+        "tests/ranging/test_beepbeep.py",
+        "tests/ranging/test_beepbeep_boundaries.py",
+    ),
+    "rangekit/detect/refine.py": (
+        "tests/detect/test_refine.py",
+        "tests/detect/test_edge_kernels.py",
+        "tests/detect/test_refine_boundaries.py",
+    ),
+    "rangekit/localize/ekf.py": ("tests/localize/test_ekf.py",),
+}
+
+_CMP = {
+    ast.Lt: ast.LtE,
+    ast.LtE: ast.Lt,
+    ast.Gt: ast.GtE,
+    ast.GtE: ast.Gt,
+    ast.Eq: ast.NotEq,
+    ast.NotEq: ast.Eq,
+    ast.Is: ast.IsNot,
+    ast.IsNot: ast.Is,
+    ast.In: ast.NotIn,
+    ast.NotIn: ast.In,
+}
+_BIN = {ast.Add: ast.Sub, ast.Sub: ast.Add, ast.Mult: ast.Div, ast.Div: ast.Mult}
+_SYM = {
+    ast.Lt: "<", ast.LtE: "<=", ast.Gt: ">", ast.GtE: ">=", ast.Eq: "==", ast.NotEq: "!=",
+    ast.Is: "is", ast.IsNot: "is not", ast.In: "in", ast.NotIn: "not in",
+    ast.Add: "+", ast.Sub: "-", ast.Mult: "*", ast.Div: "/",
+}  # fmt: skip
+
+
+@dataclass(frozen=True)
+class Site:
+    """One mutation: replace source lines/columns [start, end) by ``new`` (0-based cols)."""
+
+    line: int
+    col: int
+    end_line: int
+    end_col: int
+    new: str
+    what: str
+
+
+@dataclass
+class Outcome:
+    site: Site
+    status: str  # "killed", "survived", "timeout", "invalid"
+    seconds: float
+
+
+def _skip_nodes(tree: ast.Module) -> set[int]:
+    """ids of nodes not to mutate: docstrings, annotations, ``__all__``."""
+    skip: set[int] = set()
+
+    def mark(node):
+        for n in ast.walk(node):
+            skip.add(id(n))
+
+    for node in ast.walk(tree):
+        body = getattr(node, "body", None)
+        if isinstance(node, ast.Module | ast.FunctionDef | ast.AsyncFunctionDef | ast.ClassDef):
+            if body and isinstance(body[0], ast.Expr) and isinstance(body[0].value, ast.Constant):
+                mark(body[0])
+        if isinstance(node, ast.FunctionDef | ast.AsyncFunctionDef):
+            args = node.args
+            for a in [*args.posonlyargs, *args.args, *args.kwonlyargs, args.vararg, args.kwarg]:
+                if a is not None and a.annotation is not None:
+                    mark(a.annotation)
+            if node.returns is not None:
+                mark(node.returns)
+        if isinstance(node, ast.AnnAssign):
+            mark(node.annotation)
+        if isinstance(node, ast.Assign) and any(
+            isinstance(t, ast.Name) and t.id == "__all__" for t in node.targets
+        ):
+            mark(node)
+        if isinstance(node, ast.JoinedStr):  # f-strings: messages, not logic
+            mark(node)
+    return skip
+
+
+def _paren(node: ast.AST) -> str:
+    return f"({ast.unparse(node)})"
+
+
+def sites(source: str) -> list[Site]:
+    """Every mutation site of ``source`` (module docstring's list), in source order."""
+    tree = ast.parse(source)
+    skip = _skip_nodes(tree)
+    out: list[Site] = []
+
+    def add(node, new, what):
+        out.append(Site(node.lineno, node.col_offset, node.end_lineno, node.end_col_offset,
+                        new, what))  # fmt: skip
+
+    for node in ast.walk(tree):
+        if id(node) in skip:
+            continue
+        if isinstance(node, ast.Compare):
+            for i, op in enumerate(node.ops):
+                if type(op) in _CMP:
+                    ops = list(node.ops)
+                    ops[i] = _CMP[type(op)]()
+                    new = ast.Compare(node.left, ops, node.comparators)
+                    add(node, _paren(new), f"{_SYM[type(op)]} -> {_SYM[type(ops[i])]}")
+        elif isinstance(node, ast.BinOp) and type(node.op) in _BIN:
+            new = ast.BinOp(node.left, _BIN[type(node.op)](), node.right)
+            add(node, _paren(new), f"{_SYM[type(node.op)]} -> {_SYM[type(new.op)]}")
+        elif isinstance(node, ast.UnaryOp) and isinstance(node.op, ast.USub):
+            add(node, _paren(node.operand), "-x -> x")
+        elif isinstance(node, ast.Constant) and type(node.value) in (bool, int, float):
+            v = node.value
+            if isinstance(v, bool):
+                new = repr(not v)
+            elif isinstance(v, int):
+                new = repr(v + 1)
+            else:
+                new = "1.0" if v == 0.0 else repr(2.0 * v)
+            add(node, new, f"{v!r} -> {new}")
+    out.sort(key=lambda s: (s.line, s.col, s.what))
+    return out
+
+
+def apply(source: str, site: Site) -> str:
+    """``source`` with one site replaced (positions as given by :mod:`ast`, in characters)."""
+    lines = source.splitlines(keepends=True)
+    start = sum(len(x) for x in lines[: site.line - 1]) + _chars(lines[site.line - 1], site.col)
+    end = sum(len(x) for x in lines[: site.end_line - 1]) + _chars(
+        lines[site.end_line - 1], site.end_col
+    )
+    return source[:start] + site.new + source[end:]
+
+
+def _chars(line: str, byte_col: int) -> int:
+    """AST column offsets count UTF-8 bytes; convert to characters."""
+    return len(line.encode("utf-8")[:byte_col].decode("utf-8"))
+
+
+def _copy_tree(dst: pathlib.Path) -> None:
+    ignore = shutil.ignore_patterns(".hypothesis", ".pytest_cache", "*.pyc")
+    shutil.copytree(ROOT / "rangekit", dst / "rangekit", ignore=ignore)  # keeps numba caches
+    shutil.copytree(ROOT / "cli", dst / "rangekit_cli", ignore=ignore)
+    shutil.copytree(ROOT / "tests", dst / "tests", ignore=ignore)
+    shutil.copy2(ROOT / "pyproject.toml", dst / "pyproject.toml")
+
+
+def _run_tests(work: pathlib.Path, args: list[str], timeout_s: float) -> tuple[str, float]:
+    env = dict(os.environ, PYTHONPATH=str(work), PYTHONDONTWRITEBYTECODE="1")
+    cmd = [sys.executable, "-m", "pytest", "-x", "-q", "-p", "no:cacheprovider", *args]
+    t0 = time.perf_counter()
+    proc = subprocess.Popen(cmd, cwd=work, env=env, stdout=subprocess.DEVNULL,
+                            stderr=subprocess.DEVNULL, start_new_session=True)  # fmt: skip
+    try:
+        rc = proc.wait(timeout=timeout_s)
+    except subprocess.TimeoutExpired:
+        os.killpg(proc.pid, signal.SIGKILL)  # this mutant's own process group only
+        proc.wait()
+        return "timeout", time.perf_counter() - t0
+    return ("survived" if rc == 0 else "killed"), time.perf_counter() - t0
+
+
+def check_module(module: str, *, n: int, seed: int, timeout_s: float) -> list[Outcome]:
+    """Sample ``n`` sites of ``module`` (seeded) and run its tests on each mutant."""
+    tests = [t for t in TESTS[module] if (ROOT / t).exists()]
+    source = (ROOT / module).read_text(encoding="utf-8")
+    all_sites = sites(source)
+    rng = np.random.default_rng(seed)
+    pick = sorted(rng.choice(len(all_sites), size=min(n, len(all_sites)), replace=False))
+    sample = [all_sites[i] for i in pick]
+    print(f"{module}: {len(all_sites)} sites, {len(sample)} sampled (seed {seed}); tests: "
+          + " ".join(tests), flush=True)  # fmt: skip
+    with tempfile.TemporaryDirectory(prefix="rk-mutation-") as tmp:
+        work = pathlib.Path(tmp)
+        _copy_tree(work)
+        target = work / ("rangekit_cli" + module[3:] if module.startswith("cli/") else module)
+        args = [*tests, module]  # the module path runs its doctests (--doctest-modules)
+        status, base_s = _run_tests(work, args, timeout_s=max(timeout_s, 600.0))
+        if status != "survived":
+            raise SystemExit(f"{module}: the unmutated tests do not pass ({status}); stopping")
+        limit = max(timeout_s, 3.0 * base_s)
+        print(f"  baseline passes in {base_s:.1f} s; per-mutant timeout {limit:.0f} s", flush=True)
+        out = []
+        for k, site in enumerate(sample, 1):
+            text = apply(source, site)
+            try:
+                compile(text, module, "exec")
+            except SyntaxError:
+                out.append(Outcome(site, "invalid", 0.0))
+                continue
+            target.write_text(text, encoding="utf-8")
+            status, sec = _run_tests(work, args, limit)
+            out.append(Outcome(site, status, sec))
+            print(f"  [{k:2d}/{len(sample)}] line {site.line:4d} {site.what:<22} {status} "
+                  f"({sec:.1f} s)", flush=True)  # fmt: skip
+        target.write_text(source, encoding="utf-8")
+    return out
+
+
+def summary(module: str, out: list[Outcome], n_sites: int, seed: int) -> dict:
+    valid = [o for o in out if o.status != "invalid"]
+    killed = sum(o.status in ("killed", "timeout") for o in valid)
+    score = killed / len(valid) if valid else float("nan")
+    surv = [o.site for o in valid if o.status == "survived"]
+    print(f"{module}: killed {killed}/{len(valid)} = {100 * score:.0f} % "
+          f"(timeouts {sum(o.status == 'timeout' for o in valid)}, invalid "
+          f"{len(out) - len(valid)})")  # fmt: skip
+    lines = (ROOT / module).read_text(encoding="utf-8").splitlines()
+    for s in surv:
+        print(f"  survived: line {s.line}: {s.what}: {lines[s.line - 1].strip()}")
+    note = f"{killed}/{len(valid)} of a seeded sample (seed {seed}) of {n_sites} sites"
+    row("mutation", f"{module} mutants killed by its own tests", 100 * score, "%", note=note)
+    return {"module": module, "sites": n_sites, "sampled": len(out), "killed": killed,
+            "valid": len(valid), "score": score,
+            "mutants": [{**asdict(o.site), "status": o.status, "seconds": o.seconds}
+                        for o in out]}  # fmt: skip
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("modules", nargs="*", help=f"modules of TESTS (default: all {len(TESTS)})")
+    ap.add_argument("--n", type=int, default=40, help="mutants per module (default 40)")
+    ap.add_argument("--seed", type=int, default=0, help="sample seed (default 0)")
+    ap.add_argument(
+        "--timeout",
+        type=float,
+        default=60.0,
+        help="per-mutant timeout floor, s (default 60; at least 3x the baseline)",
+    )
+    ap.add_argument("--json", type=pathlib.Path, help="write every mutant's outcome here")
+    ap.add_argument("--list", action="store_true", help="only list the sites and their count")
+    args = ap.parse_args()
+    mods = args.modules or list(TESTS)
+    for m in mods:
+        if m not in TESTS:
+            ap.error(f"{m!r} has no test mapping; known: {', '.join(TESTS)}")
+    results = []
+    for m in mods:
+        all_sites = sites((ROOT / m).read_text(encoding="utf-8"))
+        if args.list:
+            for s in all_sites:
+                print(f"{m}:{s.line}:{s.col}: {s.what}")
+            print(f"{m}: {len(all_sites)} sites")
+            continue
+        out = check_module(m, n=args.n, seed=args.seed, timeout_s=args.timeout)
+        results.append(summary(m, out, len(all_sites), args.seed))
+    if args.json:
+        args.json.write_text(json.dumps(results, indent=1) + "\n", encoding="utf-8")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
