@@ -1,6 +1,8 @@
 """Reading and writing audio files, with validation and clear errors.
 
-Conventions (``docs/formats.md``): a recording is read as float64 in [-1, 1]; one WAV
+Conventions (``docs/formats.md``): a recording is read as floats in [-1, 1] (float32 where
+that holds every sample exactly: integer PCM of up to 24 bits and 32-bit float files; else
+float64; :func:`load_devices` and :func:`read_frames` give float64); one WAV
 with N channels is N devices (channel i = device i); N mono WAVs are N devices (file i
 = device i). Files may differ in sample rate.
 """
@@ -14,7 +16,12 @@ from pathlib import Path
 
 import numpy as np
 
-from rangekit.errors import AudioFormatError, IncompatibleInputError, InputFileError
+from rangekit.errors import (
+    AudioFormatError,
+    IncompatibleInputError,
+    InputFileError,
+    InvalidParameterError,
+)
 
 __all__ = ["Channel", "load_devices", "open_audio", "read_audio", "read_frames", "write_audio"]
 
@@ -50,8 +57,17 @@ def _readable(path: str | os.PathLike) -> Path:
     return p
 
 
-def read_audio(path: str | os.PathLike) -> tuple[np.ndarray, float]:
-    """Read an audio file as float64 of shape (n_samples, n_channels) and its rate in Hz.
+#: Subtypes whose samples float32 holds exactly (integers of up to 24 bits, 32-bit floats).
+_EXACT_IN_FLOAT32 = frozenset({"PCM_S8", "PCM_U8", "PCM_16", "PCM_24", "FLOAT", "ALAW", "ULAW"})
+
+
+def read_audio(path: str | os.PathLike, *, dtype: str = "auto") -> tuple[np.ndarray, float]:
+    """Read an audio file as floats of shape (n_samples, n_channels) and its rate in Hz.
+
+    ``dtype`` ``"auto"`` (default) decodes straight into float32 when that holds every
+    sample exactly (integer PCM of up to 24 bits, 32-bit float; the values equal the
+    float64 ones) and into float64 otherwise (32-bit PCM, 64-bit float, compressed
+    formats); ``"float32"`` or ``"float64"`` force one.
 
     Raises
     ------
@@ -60,10 +76,14 @@ def read_audio(path: str | os.PathLike) -> tuple[np.ndarray, float]:
     AudioFormatError
         The file is not audio that libsndfile can decode, or holds no samples.
     """
+    if dtype not in ("auto", "float32", "float64"):
+        raise InvalidParameterError(f"dtype={dtype!r} must be 'auto', 'float32' or 'float64'")
     p = _readable(path)
     sf = _sf()
     try:
-        x, fs = sf.read(str(p), dtype="float64", always_2d=True)
+        if dtype == "auto":
+            dtype = "float32" if sf.info(str(p)).subtype in _EXACT_IN_FLOAT32 else "float64"
+        x, fs = sf.read(str(p), dtype=dtype, always_2d=True)
     except sf.LibsndfileError as e:
         raise AudioFormatError(f"'{p}' is not a readable audio file ({e.error_string})") from e
     except (RuntimeError, TypeError, ValueError) as e:
@@ -151,7 +171,7 @@ def load_devices(paths: Sequence[str | os.PathLike], *, min_devices: int = 2) ->
     if not paths:
         raise IncompatibleInputError("no input files given")
     if len(paths) == 1:
-        x, fs = read_audio(paths[0])
+        x, fs = read_audio(paths[0], dtype="float64")
         if x.shape[1] < min_devices:
             raise IncompatibleInputError(
                 f"'{paths[0]}' has {x.shape[1]} channel(s) but {min_devices} devices are needed: "
@@ -164,7 +184,7 @@ def load_devices(paths: Sequence[str | os.PathLike], *, min_devices: int = 2) ->
         raise IncompatibleInputError(f"{len(paths)} files given but {min_devices} are needed")
     out = []
     for p in paths:
-        x, fs = read_audio(p)
+        x, fs = read_audio(p, dtype="float64")
         if x.shape[1] != 1:
             raise IncompatibleInputError(
                 f"'{p}' has {x.shape[1]} channels: with several files, each must be mono "

@@ -201,3 +201,21 @@ def test_a_short_recording_imports_neither_scipy_signal_nor_numba(tmp_path):
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == ""
+
+
+@pytest.mark.parametrize("subtype", ["PCM_16", "PCM_24", "PCM_32", "FLOAT", "DOUBLE"])
+def test_integer_pcm_is_read_into_float32_exactly(tmp_path, subtype):
+    """read_audio decodes into float32 where float32 holds every sample (the detector then
+    reads it without a float64 copy), with the float64 values; else into float64."""
+    from rangekit.io.audio import load_devices, read_audio, write_audio
+
+    x = np.random.default_rng(0).uniform(-0.9, 0.9, (2000, 2))
+    f = tmp_path / f"x_{subtype}.wav"
+    write_audio(f, x, fs=FS, subtype=subtype)
+    auto, _ = read_audio(f)
+    wide, _ = read_audio(f, dtype="float64")
+    assert auto.dtype == (np.float64 if subtype in ("PCM_32", "DOUBLE") else np.float32)
+    np.testing.assert_array_equal(auto.astype(np.float64), wide)
+    assert load_devices([f])[0].x.dtype == np.float64
+    with pytest.raises(InvalidParameterError, match="dtype"):
+        read_audio(f, dtype="int16")
