@@ -43,6 +43,7 @@ import datetime
 import json
 import os
 import platform
+import re
 import subprocess
 import sys
 import threading
@@ -327,6 +328,31 @@ def text_table(results: Sequence[BenchResult]) -> str:
     return "\n".join(line.rstrip() for line in lines)
 
 
+#: A verdict in a row's note: "goal <= 0.3 s: met", "target >= 2000x: NOT MET (...)".
+GOAL_RE = re.compile(r"((?:goal|target|acceptance|design)[^:;]*):\s*(NOT met|NOT MET|met|MET)")
+
+
+def goal_rows(results: Sequence[BenchResult]) -> list[tuple[str, str, str, str]]:
+    """``(bench, metric, goal, verdict)`` of every goal that a row's note judges (issue
+    20: each goal reported as met / not met)."""
+    out = []
+    for res in results:
+        for r in res.rows:
+            for goal, verdict in GOAL_RE.findall(str(r["note"] or "")):
+                v = "NOT met" if verdict.lower().startswith("not") else "met"
+                out.append((str(r["bench"]), str(r["metric"]), goal.strip(), v))
+    return out
+
+
+def goals_text(results: Sequence[BenchResult]) -> str:
+    """The goals, one line each, met ones first within a benchmark."""
+    rows = goal_rows(results)
+    if not rows:
+        return "  no goals judged"
+    w = max(len(f"{b}: {m}") for b, m, _, _ in rows)
+    return "\n".join(f"  {f'{b}: {m}':<{w}}  {g}: {v}" for b, m, g, v in rows)
+
+
 def _md(cell: str) -> str:
     return cell.replace("|", "\\|")
 
@@ -351,6 +377,12 @@ def markdown_section(
         "Ratio: > 1 = rangekit faster (or smaller) than the peer measured in the same run. "
         "Peak RSS: the benchmark process's peak resident set (`ru_maxrss` from `os.wait4`, "
         "and `VmHWM` sampled every 50 ms; the largest single process, not a sum).",
+        "",
+        "Goals judged by the rows (met / not met):",
+        "",
+        "| bench | metric | goal | verdict |",
+        "| --- | --- | --- | --- |",
+        *(f"| {_md(b)} | {_md(m)} | {_md(g)} | {v} |" for b, m, g, v in goal_rows(results)),
         "",
         "Benchmarks: "
         + "; ".join(
@@ -382,6 +414,9 @@ def json_report(
                 "malformed_row_lines": r.bad_lines,
             }
             for r in results
+        ],
+        "goals": [
+            {"bench": b, "metric": m, "goal": g, "verdict": v} for b, m, g, v in goal_rows(results)
         ],
         "rows": [
             {**row, "file": r.file, "peak_rss_bytes": r.peak_rss_bytes}
@@ -436,6 +471,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     print()
     print(text_table(results) if results else "  no benchmarks")
     print("  ratio: > 1 = rangekit faster (or smaller) than the peer measured in the same run")
+    print("\ngoals (from the rows' notes):")
+    print(goals_text(results))
     print(f"\nall benchmarks: {time.perf_counter() - t_all:.1f} s wall; ", end="")
     print(f"failed: {', '.join(failed)}" if failed else "all exited 0")
     if args.markdown:
