@@ -71,7 +71,7 @@ class RangekitGroup(click.Group):
         from rangekit.errors import RangekitError
 
         try:
-            return super().invoke(ctx)
+            rv = super().invoke(ctx)
         except RangekitError as e:
             if ctx.meta.get("rangekit.debug"):
                 raise
@@ -91,6 +91,10 @@ class RangekitGroup(click.Group):
                 err=True,
             )
             ctx.exit(EXIT_INTERNAL)
+        # Notes a command left for after its results (e.g. the setup range read).
+        for note in ctx.meta.pop("rangekit.notes", []):
+            click.echo(note, err=True)
+        return rv
 
 
 def _version() -> str:

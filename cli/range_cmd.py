@@ -98,6 +98,14 @@ calibration_option = click.option(
     "first) or one per device after device 0; off: no correction [off].",
 )
 @click.option(
+    "--no-setup",
+    "no_setup",
+    is_flag=True,
+    help="Do not read the setup (self-distances, temperature, period, latency, tx order) of "
+    "a sidecar NAME.json beside the recordings that names exactly them, such as `rangekit "
+    "synth` writes; options given always win over it.",
+)
+@click.option(
     "--jobs",
     type=click.IntRange(1, 256),
     default=None,
@@ -132,6 +140,7 @@ def range_cmd(
     exchange_s,
     skew_s,
     clock_rate,
+    no_setup,
     jobs,
     strict,
     fmt,
@@ -187,6 +196,8 @@ def range_cmd(
 
     probe = load_template(template)
     cal = _read_calibration(calibration, scheme)
+    if not no_setup:
+        self_distance, temp_c = _apply_setup(files, scheme, self_distance, temp_c, speed, cal, kw)
     if series and scheme != "beepbeep" and (probe is not None or cal is not None):
         raise click.UsageError(
             "--template and --calibration apply to --series with --scheme beepbeep only"
@@ -336,6 +347,49 @@ def _refuse_ultrasonic_options(kw: dict) -> None:
         if kw.pop(k, None) is not None:
             opt = "--" + k.replace("_", "-")
             raise click.UsageError(f"{opt} applies to --scheme oneway and echo only")
+
+
+def _apply_setup(files, scheme, self_distance, temp_c, speed, cal, kw):
+    """Options not given, from the setup of a sidecar that names exactly ``files``
+    (:func:`rangekit.io.setup.find_setup`); says on stderr what it took. Returns the
+    self-distance and temperature to use; fills ``kw`` (period, latency, tx order)."""
+    from rangekit.io.setup import find_setup
+
+    setup = find_setup(files)
+    if setup is None or setup.scheme != scheme:
+        return self_distance, temp_c
+    ctx = click.get_current_context()
+
+    def unset(name: str) -> bool:
+        return ctx.get_parameter_source(name) == click.core.ParameterSource.DEFAULT
+
+    took = []
+    if scheme == "beepbeep":
+        if setup.self_distance_m is not None and unset("self_distance") and cal is None:
+            self_distance = ",".join(repr(v) for v in setup.self_distance_m)
+            took.append("--self-distance " + ",".join(f"{v:g}" for v in setup.self_distance_m))
+    else:
+        for key, value in (("period", setup.period_s), ("latency", setup.latency_s)):
+            if (
+                value is not None
+                and kw.get(key) is None
+                and (key == "period" or scheme == "oneway")
+            ):
+                kw[key] = value
+                took.append(f"--{key} {value:g}")
+        if setup.tx_order is not None and scheme == "oneway" and kw.get("tx_order") is None:
+            kw["tx_order"] = ",".join(str(t) for t in setup.tx_order)
+            took.append(f"--tx-order {kw['tx_order']}")
+    if setup.temp_c is not None and unset("temp_c") and speed is None:
+        temp_c = setup.temp_c
+        took.append(f"--temperature {setup.temp_c:g}")
+    if took:
+        # Said after the results (an error stays one line): rangekit_cli.main prints notes.
+        ctx.meta.setdefault("rangekit.notes", []).append(
+            f"rangekit: used the setup in '{setup.path}': {' '.join(took)} (--no-setup to "
+            "ignore it)"
+        )
+    return self_distance, temp_c
 
 
 def _refuse_self_distance(sd) -> None:

@@ -282,6 +282,12 @@ def synth_beepbeep(
         impairments, recordings, fs=fs, seed=seed, floor_psd=floors, truth=dict(sim.truth)
     )
     truth["seed"] = seed
+    truth["setup"] = {  # what a user knows before measuring (rangekit.io.setup)
+        "scheme": "beepbeep",
+        "self_distance_m": [float(d["self_distance_m"]) for d in truth["devices"]],
+        "temp_c": temp_c,
+        "signal": {"probe": str(template)} if template is not None else {"beep": truth.get("beep")},
+    }
     if mono:
         files = [out.with_name(f"{out.stem}_dev{i}{out.suffix or '.wav'}") for i in range(n)]
     else:
@@ -509,6 +515,13 @@ def synth_oneway(
     truth["seed"] = seed
     truth["files"] = [out.name]
     truth["beacons"] = beacons.name
+    truth["setup"] = {
+        "scheme": "oneway",
+        "temp_c": temp_c,
+        "period_s": period,
+        "latency_s": latency,
+        "tx_order": list(range(len(pts))),
+    }
     write_json(out.with_suffix(".json"), truth)
     write_json(beacons, Beacons(np.arange(len(pts)), pts).to_json())
     click.echo(
@@ -596,6 +609,7 @@ def synth_echo(map_path, poses, mount, snr_db, no_noise, temp_c, q, fs, seed, im
     truth["seed"] = seed
     truth["map"] = str(map_path)
     truth["files"] = [out.name]
+    truth["setup"] = {"scheme": "echo", "temp_c": temp_c, "period_s": truth.get("period_s")}
     write_json(out.with_suffix(".json"), truth)
     ranges = ", ".join(
         "-" if w["distance_m"] is None else f"{w['distance_m']:.3f} m" for w in truth["windows"]

@@ -22,7 +22,7 @@ def _synth(tmp_path, name, *extra):
 def test_clipped_exchange_is_flagged_and_refused_in_strict_mode(tmp_path):
     wav = _synth(tmp_path, "clipped", "--impair", "clip_db=15")
     res = ok(run(["range", wav, "--self-distance", 0.1, "--format", "json"]))
-    r = json.loads(res.output)["ranges"][0]
+    r = json.loads(res.stdout)["ranges"][0]
     assert "clipped" in r["flags"]
     assert abs(r["distance_m"] - 2.0) < 0.03  # measured 15 mm long, sigma 9 mm (flagged)
     out = tmp_path / "ranges.txt"
@@ -35,7 +35,7 @@ def test_clipped_exchange_is_flagged_and_refused_in_strict_mode(tmp_path):
 def test_clean_exchange_passes_strict_mode(tmp_path):
     wav = _synth(tmp_path, "clean")
     res = ok(run(["range", wav, "--self-distance", 0.1, "--strict", "--format", "json"]))
-    r = json.loads(res.output)["ranges"][0]
+    r = json.loads(res.stdout)["ranges"][0]
     assert r["flags"] == [] and abs(r["distance_m"] - 2.0) < 0.01
 
 
@@ -72,7 +72,7 @@ def _check_withheld(plain: list[dict], strict: list[dict]) -> int:
 def test_series_strict_withholds_the_doubtful_exchange(tmp_path):
     wav = _series(tmp_path)
     args = ["range", "--series", wav, "--self-distance", 0.1]
-    plain = json.loads(ok(run([*args, "--format", "json"])).output)["ranges"]
+    plain = json.loads(ok(run([*args, "--format", "json"])).stdout)["ranges"]
     assert [round(r["distance_m"], 1) for r in plain] == [2.0, 2.0]
     assert plain[0]["flags"] == [] and "clipped" in plain[1]["flags"]
     out = tmp_path / "s.csv"
@@ -91,7 +91,7 @@ def test_oneway_strict_withholds_flagged_rows(tmp_path):
     wav = tmp_path / "ow.wav"
     ok(run(["synth", "oneway", "--seed", 1, "--snr-db", 8, "-o", wav]))
     args = ["range", "--scheme", "oneway", wav, "--period", 0.2, "--format", "json"]
-    plain = json.loads(ok(run(args)).output)["ranges"]
+    plain = json.loads(ok(run(args)).stdout)["ranges"]
     res = run([*args, "--strict"])
     msg = assert_error(res, 10, "ow.wav", "withheld")
     n = _check_withheld(plain, json.loads(res.stdout)["ranges"])
@@ -105,12 +105,12 @@ def test_xcorr_on_a_reflection_is_flagged_not_confident(tmp_path):
     """The cross-correlation baseline takes a reflection 257 samples late in the room
     fixture (6.09 m for 4.08 m): it must carry a flag, and --strict refuses it."""
     res = ok(run(["range", ROOM, "--detector", "xcorr", "--format", "json"]))
-    r = json.loads(res.output)["ranges"][0]
+    r = json.loads(res.stdout)["ranges"][0]
     assert abs(r["distance_m"] - 4.08) > 1.0  # still the baseline's wrong answer ...
     assert "ambiguous_first_path" in r["flags"]  # ... but no longer a confident one
     assert_error(run(["range", ROOM, "--detector", "xcorr", "--strict"]), 10, "pair 0-1")
     res = ok(run(["range", ROOM, "--strict", "--format", "json"]))  # changepoint: fine
-    assert abs(json.loads(res.output)["ranges"][0]["distance_m"] - 4.08) < 0.01
+    assert abs(json.loads(res.stdout)["ranges"][0]["distance_m"] - 4.08) < 0.01
 
 
 def test_wrong_template_is_flagged_or_refused(tmp_path):
@@ -121,7 +121,7 @@ def test_wrong_template_is_flagged_or_refused(tmp_path):
     ok(run(["design", "sweep", "--f0", 17000, "--f1", 20000, "--duration", 0.1, "-o", sweep]))
     res = run(["range", wav, "--template", sweep, "--self-distance", 0.1, "--format", "json"])
     if res.exit_code == 0:
-        r = json.loads(res.output)["ranges"][0]
+        r = json.loads(res.stdout)["ranges"][0]
         assert abs(r["distance_m"] - 3.0) < 0.1 or r["flags"], r
         res = run(["range", wav, "--template", sweep, "--self-distance", 0.1, "--strict"])
         assert res.exit_code in (6, 10)

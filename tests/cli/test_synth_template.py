@@ -21,7 +21,7 @@ def test_synth_with_a_probe_ranges_back_with_the_same_probe(tmp_path, sweep):
     truth = json.loads(wav.with_suffix(".json").read_text())
     assert truth["beep"]["probe"].endswith("sweep.wav") and truth["beep"]["n_samples"] == 4410
     args = ["range", wav, "--template", sweep, "--self-distance", 0.1, "--format", "json"]
-    r = json.loads(ok(run(args)).output)["ranges"][0]
+    r = json.loads(ok(run(args)).stdout)["ranges"][0]
     # measured 1.999860 m, sigma 2.55 mm
     assert abs(r["distance_m"] - 2.0) < 2 * r["sigma_m"] and r["sigma_m"] < 0.005
     assert r["flags"] == []

@@ -80,10 +80,16 @@ def test_oneway_end_to_end(oneway):
 
 def test_oneway_without_latency_is_biased_by_it(oneway):
     wav, truth = oneway
-    r = _run(["range", "--scheme", "oneway", wav, "--period", 0.05, "--format", "json"])
-    row = json.loads(r.stdout)["ranges"][0]
+    # --no-setup: the sidecar's setup would give the 2 ms latency (as below).
+    args = ["range", "--scheme", "oneway", wav, "--period", 0.05, "--format", "json"]
+    row = json.loads(_run([*args, "--no-setup"]).stdout)["ranges"][0]
     bias = row["distance_m"] - truth["windows"][0]["distances_m"][0]
     assert abs(bias - 0.002 * truth["speed_of_sound_m_s"]) < 2e-3
+    r = _run(args)
+    row = json.loads(r.stdout)["ranges"][0]
+    assert abs(row["distance_m"] - truth["windows"][0]["distances_m"][0]) < 2e-3
+    assert r.stderr.splitlines()[-1].startswith("rangekit: used the setup in")
+    assert "--latency 0.002" in r.stderr
 
 
 def test_echo_end_to_end_and_out_of_range(tmp_path):
