@@ -14,7 +14,11 @@ from pathlib import Path
 
 import numpy as np
 
-from rangekit.errors import AudioFormatError, IncompatibleInputError, InputFileError
+from rangekit.errors import (
+    AudioFormatError,
+    IncompatibleInputError,
+    RangekitError,
+)
 
 __all__ = ["Channel", "load_devices", "open_audio", "read_audio", "read_frames", "write_audio"]
 
@@ -39,15 +43,15 @@ def _sf():
 
 
 def _readable(path: str | os.PathLike) -> Path:
-    """``path`` as a Path if it is a readable file, else InputFileError naming it."""
-    p = Path(path)
-    if not p.exists():
-        raise InputFileError(f"cannot open '{p}': no such file")
-    if p.is_dir():
-        raise InputFileError(f"cannot open '{p}': it is a directory")
-    if not os.access(p, os.R_OK):
-        raise InputFileError(f"cannot open '{p}': permission denied")
-    return p
+    """``path`` as a Path if it is a readable regular file, else InputFileError naming it.
+
+    Directories, FIFOs, devices (``/dev/zero``) and sockets are refused before they are
+    opened (:func:`rangekit.io.guard.regular_file`): nothing blocks or reads forever.
+    """
+    from rangekit.io.guard import regular_file
+
+    regular_file(path)
+    return Path(path)
 
 
 def read_audio(path: str | os.PathLike) -> tuple[np.ndarray, float]:
@@ -189,18 +193,15 @@ def write_audio(
     peak = float(np.max(np.abs(x))) if x.size else 0.0
     if subtype.startswith("PCM") and peak > 1.0:
         raise AudioFormatError(f"cannot write '{path}': peak {peak:.3f} exceeds full scale 1.0")
+    from rangekit.io.guard import atomic_output
+
     p = Path(path)
-    if p.parent and not p.parent.exists():
-        raise InputFileError(f"cannot write '{p}': folder '{p.parent}' does not exist")
-    tmp = p.with_name(f".{p.name}.part")
     sf = _sf()
     fmt = p.suffix.lstrip(".").upper() or "WAV"
     try:
-        sf.write(str(tmp), x, int(round(fs)), subtype=subtype, format=fmt)
-        os.replace(tmp, p)
+        with atomic_output(p) as f:
+            sf.write(f, x, int(round(fs)), subtype=subtype, format=fmt)
     except (sf.LibsndfileError, TypeError, ValueError) as e:
-        tmp.unlink(missing_ok=True)
+        if isinstance(e, RangekitError):
+            raise
         raise AudioFormatError(f"cannot write '{p}': {e}") from e
-    except OSError as e:
-        tmp.unlink(missing_ok=True)
-        raise InputFileError(f"cannot write '{p}': {e.strerror or e}") from e
