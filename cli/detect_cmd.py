@@ -132,7 +132,8 @@ def detect_cmd(files, detector, template, expected, min_separation, weighting, f
     )
     if probe is not None and expected is not None:
         meta["expected"] = expected
-    emit(format_arrivals(rows, fmt, meta=meta), output)
+    if not (empty and output is not None):  # a failed run leaves -o FILE untouched
+        emit(format_arrivals(rows, fmt, meta=meta), output)
     if empty:
         what = "no beep" if probe is None else f"no arrival of '{template}'"
         click.echo(f"rangekit: error: {what} found in {', '.join(empty)}", err=True)

@@ -8,6 +8,7 @@ import click
 from rangekit_cli._options import (
     FiniteRange,
     beep_options,
+    check_outputs,
     debug_option,
     float_list,
     make_beep,
@@ -226,6 +227,7 @@ def synth_beepbeep(
         files = [out.with_name(f"{out.stem}_dev{i}{out.suffix or '.wav'}") for i in range(n)]
     else:
         files = [out]
+    check_outputs([*files, out.with_suffix(".json")])
     for f, x in zip(files, recordings, strict=True):
         write_audio(f, x, fs=fs)
     truth["files"] = [f.name for f in files]
@@ -438,6 +440,7 @@ def synth_oneway(
     )
     out = Path(output)
     x, truth = _ultrasonic_output(sim.x.T, sim.truth, peak=0.5, fs=fs, seed=seed, imp=impairments)
+    check_outputs([out, out.with_suffix(".json")])
     write_audio(out, x, fs=fs)
     truth["seed"] = seed
     truth["files"] = [out.name]
@@ -521,6 +524,7 @@ def synth_echo(map_path, poses, mount, snr_db, no_noise, temp_c, q, fs, seed, im
     )
     out = Path(output)
     x, truth = _ultrasonic_output(sim.x[0], sim.truth, peak=0.9, fs=fs, seed=seed, imp=impairments)
+    check_outputs([out, out.with_suffix(".json")])
     write_audio(out, x, fs=fs)
     truth["seed"] = seed
     truth["map"] = str(map_path)

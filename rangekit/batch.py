@@ -857,10 +857,9 @@ class ResultsFile:
         self.head = self._head(options)
         self.done: dict[str, list[str]] = {}  # session -> its lines, in file order
         self.status: dict[str, str] = {}  # session -> "ok" or "error"
-        if not self.path.parent.is_dir():
-            raise InputFileError(
-                f"cannot write '{self.path}': folder '{self.path.parent}' does not exist"
-            )
+        from rangekit.io.guard import check_output
+
+        check_output(self.path)  # no link, device or directory; the folder exists
         if self.path.exists():
             if not resume:
                 raise InvalidParameterError(
@@ -871,7 +870,8 @@ class ResultsFile:
         else:
             self._write_new(self.head)
         try:
-            self._fd = os.open(self.path, os.O_WRONLY | os.O_APPEND)
+            nofollow = getattr(os, "O_NOFOLLOW", 0)
+            self._fd = os.open(self.path, os.O_WRONLY | os.O_APPEND | nofollow)
         except OSError as e:
             raise InputFileError(f"cannot write '{self.path}': {e.strerror or e}") from e
 
@@ -951,7 +951,10 @@ class ResultsFile:
         blob = "".join(lines).encode("utf-8")
         view = memoryview(blob)
         while view:
-            n = os.write(self._fd, view)
+            try:
+                n = os.write(self._fd, view)
+            except OSError as e:  # a full disk: what is written so far stays resumable
+                raise InputFileError(f"cannot write '{self.path}': {e.strerror or e}") from e
             view = view[n:]
         name = str(rows[0]["session"])
         self.done[name] = lines

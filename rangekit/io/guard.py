@@ -48,6 +48,7 @@ __all__ = [
     "MAX_TABLE_BYTES",
     "atomic_output",
     "check_output",
+    "default_mode",
     "parse_json",
     "read_capped",
     "read_json_file",
@@ -263,10 +264,11 @@ def check_output(path: str | os.PathLike, inputs: Iterable[str | os.PathLike] = 
     return p
 
 
-def _umask() -> int:
+def default_mode() -> int:
+    """The mode of a new file under the current umask (``0o666 & ~umask``)."""
     mask = os.umask(0o022)
     os.umask(mask)
-    return mask
+    return 0o666 & ~mask
 
 
 @contextlib.contextmanager
@@ -288,7 +290,7 @@ def atomic_output(path: str | os.PathLike, *, text: bool = False) -> Iterator[IO
         with os.fdopen(fd, mode, **kw) as f:
             yield f
             f.flush()
-        os.chmod(tmp, 0o666 & ~_umask())
+        os.chmod(tmp, default_mode())
         os.replace(tmp, p)
         done = True
     except OSError as e:
