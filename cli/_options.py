@@ -43,15 +43,31 @@ def beep_options(f):
         click.option(
             "--freq", "f_hz", type=float, default=None, help="Beep frequency in Hz [16000]."
         ),
-        click.option("--bursts", "n_bursts", type=int, default=None, help="Bursts per beep [4]."),
         click.option(
-            "--spacing", type=int, default=None, help="Samples between burst starts [5000]."
+            "--bursts",
+            "n_bursts",
+            type=click.IntRange(1, 64),
+            default=None,
+            help="Bursts per beep, at most 64 (the detectors' work grows with it) [4].",
         ),
         click.option(
-            "--burst-len", "burst_len", type=int, default=None, help="Samples per burst [441]."
+            "--spacing",
+            type=click.IntRange(1, 10**7),
+            default=None,
+            help="Samples between burst starts; the whole beep lasts at most 10 s [5000].",
         ),
         click.option(
-            "--taper", type=int, default=None, help="Raised-cosine taper samples at each end [22]."
+            "--burst-len",
+            "burst_len",
+            type=click.IntRange(8, 10**7),
+            default=None,
+            help="Samples per burst [441].",
+        ),
+        click.option(
+            "--taper",
+            type=click.IntRange(0, 10**7),
+            default=None,
+            help="Raised-cosine taper samples at each end [22].",
         ),
         click.option(
             "--beep-fs",

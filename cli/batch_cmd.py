@@ -194,6 +194,7 @@ def batch_cmd(
 
     def progress(done: int, total: int) -> None:
         if quiet:
+            state["last"] = done  # counted for the interrupt message
             return
         if state["bar"] is None:  # first call: done = sessions found in a resumed file
             from rangekit_cli._progress import Progress

@@ -1110,11 +1110,60 @@ def _run_pool(jobs: int, chunks: list[list[Session]], options, record) -> None:
             for rows in f.result():
                 record(rows)
     except BaseException:
+        procs = list((getattr(ex, "_processes", None) or {}).values())
         ex.shutdown(wait=False, cancel_futures=True)
-        for p in list(getattr(ex, "_processes", {}).values()):
+        # shutdown() sets _processes to None: take the workers before it
+        for p in procs:
             p.terminate()
         raise
     ex.shutdown(wait=True)
+
+
+_ADDRESS_RE = re.compile(
+    r"^(?:(?P<proto>tcp|tls)://)?(?P<host>\[[0-9a-fA-F:]+\]|[^\s:/\[\]]+):(?P<port>\d{1,5})$"
+)
+
+
+def _dask_client(Client, address: str):
+    """A connected Dask client, or an error within about DASK_CONNECT_TIMEOUT_S.
+
+    The address must be ``[tcp://|tls://]HOST:PORT`` (else InvalidParameterError). The
+    TCP connection and then the Dask handshake each get the timeout: a server that
+    accepts and never answers, or is not a Dask scheduler, is an InputFileError naming
+    the address, not a hang."""
+    import socket
+    import threading
+
+    m = _ADDRESS_RE.match(address.strip())
+    if m is None or not 0 < int(m["port"]) < 65536:
+        raise InvalidParameterError(
+            f"--scheduler {address!r} is not an address of the form tcp://HOST:PORT"
+        )
+    t = DASK_CONNECT_TIMEOUT_S
+    where = f"the Dask scheduler at {address}"
+    try:
+        socket.create_connection((m["host"].strip("[]"), int(m["port"])), timeout=t).close()
+    except OSError as e:
+        raise InputFileError(f"cannot connect to {where}: {e.strerror or e}") from None
+    box: dict[str, Any] = {}
+
+    def connect() -> None:
+        try:
+            box["client"] = Client(address.strip(), timeout=f"{t}s")
+        except BaseException as e:  # reported in the caller's thread
+            box["error"] = e
+
+    th = threading.Thread(target=connect, daemon=True, name="rangekit-dask-connect")
+    th.start()
+    th.join(t + 5.0)
+    if th.is_alive():
+        raise InputFileError(
+            f"cannot connect to {where}: no Dask handshake within {t:g} s (is it a Dask scheduler?)"
+        )
+    if "error" in box:
+        e = box["error"]
+        raise InputFileError(f"cannot connect to {where}: {type(e).__name__}: {e}") from None
+    return box["client"]
 
 
 def _run_dask(address: str, chunks: list[list[Session]], options, record) -> None:
@@ -1124,10 +1173,7 @@ def _run_dask(address: str, chunks: list[list[Session]], options, record) -> Non
         raise InvalidParameterError(
             "--scheduler needs Dask: pip install 'rangekit[dask]' (dask[distributed])"
         ) from None
-    try:
-        client = Client(address, timeout=f"{DASK_CONNECT_TIMEOUT_S}s")
-    except (OSError, TimeoutError) as e:
-        raise InputFileError(f"cannot connect to the Dask scheduler at {address}: {e}") from e
+    client = _dask_client(Client, address)
     try:
         futs = [client.submit(_run_chunk, c, options, pure=False) for c in chunks]
         for f in as_completed(futs):

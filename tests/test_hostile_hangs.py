@@ -1,0 +1,112 @@
+"""Nothing hangs (issue 17): FIFOs refused unopened, count options bounded, a scheduler
+that never answers times out, Ctrl-C on a parallel batch exits 130 with a true count."""
+
+from __future__ import annotations
+
+import os
+import shutil
+import signal
+import socket
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from rangekit.batch import find_sessions, run_batch
+from rangekit.errors import InputFileError, InvalidParameterError
+from rangekit.signals import Beep
+
+ROOT = Path(__file__).resolve().parents[1]
+REC = ROOT / "fixtures_audio" / "beepbeep_2p5m.wav"
+
+
+def test_fifo_recording_and_template_are_refused_unopened(tmp_path):
+    from rangekit.io.audio import open_audio, read_audio
+    from rangekit.signals.probe import read_probe
+
+    fifo = tmp_path / "f.wav"
+    os.mkfifo(fifo)
+    for fn in (read_audio, open_audio, read_probe):
+        with pytest.raises(InputFileError, match=r"f\.wav': it is a FIFO"):
+            fn(fifo)
+
+
+def test_beep_counts_are_bounded():
+    with pytest.raises(InvalidParameterError, match=r"n_bursts=100000000 must be <= 64"):
+        Beep(n_bursts=100_000_000)
+    with pytest.raises(InvalidParameterError, match=r"more than 10 s"):
+        Beep(n_bursts=64, spacing=10**6)
+    assert Beep(n_bursts=64).n_bursts == 64
+
+
+def test_cli_count_options_say_their_bound():
+    from clihelp import run
+
+    r = run(["range", "--help"])
+    assert "at most 64" in r.stdout
+    r = run(["range", "x.wav", "--bursts", "100000000"])
+    assert r.exit_code == 2 and "--bursts" in r.stderr
+    r = run(["experiment", "ahn2007", "--trials", "100001"])
+    assert r.exit_code == 2 and "--trials" in r.stderr
+    assert "1 to 10000" in run(["experiment", "--help"]).stdout
+
+
+sys.path.insert(0, str(ROOT / "tests" / "cli"))
+
+
+@pytest.mark.parametrize("address", ["tcp://", "tcp://host", "http://x:1", "tcp://h:99999"])
+def test_malformed_scheduler_address_is_a_usage_error(tmp_path, address):
+    pytest.importorskip("distributed")
+    shutil.copy(REC, tmp_path / "r.wav")
+    with pytest.raises(InvalidParameterError, match="not an address"):
+        run_batch(find_sessions([tmp_path]), tmp_path / "x.csv", scheduler=address)
+
+
+def test_scheduler_that_accepts_and_never_answers_times_out(tmp_path, monkeypatch):
+    pytest.importorskip("distributed")
+    import rangekit.batch
+
+    monkeypatch.setattr(rangekit.batch, "DASK_CONNECT_TIMEOUT_S", 1.0)
+    shutil.copy(REC, tmp_path / "r.wav")
+    srv = socket.socket()
+    srv.bind(("127.0.0.1", 0))
+    srv.listen(8)  # the kernel accepts; nobody ever answers
+    port = srv.getsockname()[1]
+    try:
+        with pytest.raises(InputFileError, match=rf"127\.0\.0\.1:{port}"):
+            run_batch(
+                find_sessions([tmp_path]), tmp_path / "x.csv", scheduler=f"tcp://127.0.0.1:{port}"
+            )
+    finally:
+        srv.close()
+
+
+@pytest.mark.skipif(sys.platform != "linux", reason="signals as on Linux")
+def test_ctrl_c_on_parallel_batch_exits_130_with_the_true_count(tmp_path):
+    arch = tmp_path / "a"
+    arch.mkdir()
+    for i in range(40):
+        shutil.copy(REC, arch / f"s{i:02d}.wav")
+    out = tmp_path / "r.csv"
+    cmd = [sys.executable, "-m", "rangekit", "batch", str(arch), "-o", str(out)]
+    for quiet in (["-q"], []):
+        out.unlink(missing_ok=True)
+        p = subprocess.Popen(
+            [*cmd, "--jobs", "2", *quiet], stderr=subprocess.PIPE, stdout=subprocess.PIPE
+        )
+        deadline = time.monotonic() + 120
+        while time.monotonic() < deadline and p.poll() is None:
+            if out.exists() and out.read_text().count("\n") >= 4:  # 2 header + 2 sessions
+                break
+            time.sleep(0.05)
+        p.send_signal(signal.SIGINT)
+        _, err = p.communicate(timeout=60)
+        err = err.decode()
+        if p.returncode == 0:
+            pytest.skip("the batch finished before the interrupt")
+        assert p.returncode == 130, err
+        assert "Traceback" not in err and "internal error" not in err
+        n = sum(1 for ln in out.read_text().splitlines()[2:] if ln)
+        assert f"interrupted: {n} of 40 sessions are in" in err, (n, err)
