@@ -3,6 +3,7 @@ that never answers times out, Ctrl-C on a parallel batch exits 130 with a true c
 
 from __future__ import annotations
 
+import math
 import os
 import shutil
 import signal
@@ -110,3 +111,60 @@ def test_ctrl_c_on_parallel_batch_exits_130_with_the_true_count(tmp_path):
         assert "Traceback" not in err and "internal error" not in err
         n = sum(1 for ln in out.read_text().splitlines()[2:] if ln)
         assert f"interrupted: {n} of 40 sessions are in" in err, (n, err)
+
+
+def test_library_arguments_raise_only_rangekit_errors():
+    import numpy as np
+
+    from rangekit.detect import detect_changepoint, detect_xcorr
+    from rangekit.errors import InvalidParameterError
+
+    x = np.zeros(5000)
+    for kw in ({"win_s": math.nan}, {"threshold_db": 1e6}, {"expected": 0}, {"hop_s": -1}):
+        with pytest.raises(InvalidParameterError, match=next(iter(kw))):
+            detect_changepoint(x, fs=44100.0, **kw)
+    for kw in ({"threshold_db": math.nan}, {"threshold_db": 1e6}, {"min_confidence": 2}):
+        with pytest.raises(InvalidParameterError, match=next(iter(kw))):
+            detect_xcorr(x, fs=44100.0, **kw)
+    for bad in (np.zeros((2, 100)), "abc", np.r_[x, 1e300], x.astype(complex) + 1j):
+        with pytest.raises(InvalidParameterError, match="x "):
+            detect_changepoint(bad, fs=44100.0)
+
+
+def test_a_1e300_sample_in_a_float_wav_is_refused(tmp_path):
+    import numpy as np
+    import soundfile as sf
+    from clihelp import assert_error, run
+
+    x = np.zeros((44100, 2))
+    x[100, 0] = 1e300
+    sf.write(tmp_path / "big.wav", x, 44100, subtype="DOUBLE")
+    assert_error(run(["range", tmp_path / "big.wav"]), 4, "big.wav", "magnitude 1e+300")
+
+
+def test_memory_budget_refuses_whole_file_reads_with_a_hint(tmp_path, monkeypatch):
+    from clihelp import assert_error, ok, run
+
+    from rangekit.io.audio import BUDGET_ENV, read_audio
+
+    # a sparse WAV whose header promises 2 GiB of 16-bit stereo samples
+    p = tmp_path / "sparse.wav"
+    data = 2**31
+    hdr = b"RIFF" + (36 + data).to_bytes(4, "little") + b"WAVEfmt "
+    hdr += (16).to_bytes(4, "little") + (1).to_bytes(2, "little") + (2).to_bytes(2, "little")
+    hdr += (44100).to_bytes(4, "little") + (44100 * 4).to_bytes(4, "little")
+    hdr += (4).to_bytes(2, "little") + (16).to_bytes(2, "little")
+    hdr += b"data" + data.to_bytes(4, "little")
+    with open(p, "wb") as f:
+        f.write(hdr)
+        f.truncate(len(hdr) + data)
+    monkeypatch.setenv(BUDGET_ENV, "1G")
+    with pytest.raises(Exception, match=r"sparse\.wav'.*--series") as e:
+        read_audio(p)
+    assert e.value.exit_code == 5
+    line = assert_error(run(["range", p]), 5, "sparse.wav", "memory budget of 1.00 GiB")
+    assert "--series" in line and "--memory-budget" in line
+    monkeypatch.delenv(BUDGET_ENV)
+    assert_error(run(["--memory-budget", "1M", "range", REC]), 5, "memory budget of 1.0 MiB")
+    ok(run(["--memory-budget", "off", "range", REC]))
+    assert_error(run(["--memory-budget", "lots", "range", REC]), 2, "--memory-budget")

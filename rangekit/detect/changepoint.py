@@ -769,6 +769,12 @@ def detect_changepoint(
     fs = V.sample_rate(fs)
     x = V.signal_1d("x", x)
     check_beep_fits(beep, fs=fs)
+    win_s = V.in_range("win_s", win_s, 1e-5, 1.0)
+    hop_s = V.in_range("hop_s", hop_s, 1e-7, 1.0)
+    threshold_db = V.in_range("threshold_db", threshold_db, -100.0, 200.0)
+    rise_db = V.in_range("rise_db", rise_db, -100.0, 200.0)
+    if expected is not None:
+        expected = V.positive_int("expected", expected)
     k_b = beep.n_bursts
     if min_bursts is None:
         min_bursts = 1 if k_b == 1 else max(2, k_b - 1)
@@ -842,7 +848,7 @@ def detect_changepoint(
         flags=np.array([r[5] for r in rows], dtype=np.int64),
     )
     arr = drop_echoes(arr, duration=beep.duration_s * fs)
-    if expected is not None and len(arr) > V.positive_int("expected", expected):
+    if expected is not None and len(arr) > expected:
         weak = flag_bit("inconsistent_bursts") | flag_bit("low_snr")
         doubtful = np.flatnonzero(arr.flags & weak)
         # weakest first: fewest agreeing bursts, then lowest SNR

@@ -36,6 +36,82 @@ class Channel:
         return len(self.x) / self.fs
 
 
+#: Largest sample magnitude accepted in a recording. Integer formats are within [-1, 1];
+#: a float file can hold anything, and a sample of 1e300 is not sound (its energy
+#: overflows): such a file is refused (exit 4) instead of poisoning the detection.
+MAX_SAMPLE_ABS = 1e3
+#: Peak memory of a whole-file command per byte of float64 samples (measured: about 8x
+#: the samples -- the STFT, the conditioned copy, the matched filter).
+PEAK_FACTOR = 8
+#: Environment variable with the memory budget of whole-file reads (``--memory-budget``).
+BUDGET_ENV = "RANGEKIT_MEMORY_BUDGET"
+#: Fraction of the available memory that is the default budget.
+BUDGET_FRACTION = 0.5
+
+
+def parse_size(text: str) -> int | None:
+    """Bytes of ``"512M"``, ``"4G"``, ``"1.5G"``, ``"1000000"`` (K, M, G, T: powers of
+    1024); None for ``"off"`` (no budget). InvalidParameterError otherwise."""
+    import re
+
+    from rangekit.errors import InvalidParameterError
+
+    t = str(text).strip().lower()
+    if t in ("off", "none", "0"):
+        return None
+    m = re.fullmatch(r"(\d+(?:\.\d+)?)\s*([kmgt]?)i?b?", t)
+    if m is None:
+        raise InvalidParameterError(
+            f"memory budget {text!r} must be a size such as 512M, 4G or off"
+        )
+    v = float(m[1]) * 1024 ** " kmgt".index(m[2] or " ")
+    if not 1 <= v <= 2**60:
+        raise InvalidParameterError(f"memory budget {text!r} is out of range")
+    return int(v)
+
+
+def memory_budget() -> int | None:
+    """Bytes a whole-file read may plan to use (None: no limit).
+
+    ``$RANGEKIT_MEMORY_BUDGET`` (``rangekit --memory-budget``) if set, else
+    :data:`BUDGET_FRACTION` of the available memory (``MemAvailable`` of /proc/meminfo;
+    4 GiB where that is unknown)."""
+    env = os.environ.get(BUDGET_ENV)
+    if env:
+        return parse_size(env)
+    try:
+        with open("/proc/meminfo", encoding="ascii") as f:
+            for line in f:
+                if line.startswith("MemAvailable:"):
+                    return int(BUDGET_FRACTION * int(line.split()[1]) * 1024)
+    except (OSError, ValueError, IndexError):
+        pass
+    return 4 * 2**30
+
+
+def _size(n: int) -> str:
+    return f"{n / 2**30:.2f} GiB" if n >= 2**30 else f"{n / 2**20:.1f} MiB"
+
+
+def check_memory(path: str | os.PathLike, frames: int, channels: int) -> None:
+    """Refuse a whole-file read whose estimated peak exceeds :func:`memory_budget`.
+
+    Raises
+    ------
+    IncompatibleInputError
+        Naming the file, the estimate, the budget, and ``--series`` (exit 5).
+    """
+    budget = memory_budget()
+    need = int(frames) * int(channels) * 8 * PEAK_FACTOR
+    if budget is not None and need > budget:
+        raise IncompatibleInputError(
+            f"'{os.fspath(path)}': {frames} frames x {channels} channel(s) need about "
+            f"{_size(need)} to process whole, more than the memory budget of "
+            f"{_size(budget)}: use `rangekit range --series` (bounded memory), or "
+            f"raise the budget (rangekit --memory-budget SIZE, or ${BUDGET_ENV})"
+        )
+
+
 def _sf():
     import soundfile  # deferred: keeps `import rangekit` cheap
 
@@ -67,7 +143,12 @@ def read_audio(path: str | os.PathLike) -> tuple[np.ndarray, float]:
     p = _readable(path)
     sf = _sf()
     try:
-        x, fs = sf.read(str(p), dtype="float64", always_2d=True)
+        with sf.SoundFile(str(p)) as f:
+            check_memory(p, f.frames, f.channels)
+            x = f.read(dtype="float64", always_2d=True)
+            fs = f.samplerate
+    except RangekitError:
+        raise
     except sf.LibsndfileError as e:
         raise AudioFormatError(f"'{p}' is not a readable audio file ({e.error_string})") from e
     except (RuntimeError, TypeError, ValueError) as e:
@@ -76,7 +157,17 @@ def read_audio(path: str | os.PathLike) -> tuple[np.ndarray, float]:
         raise AudioFormatError(f"'{p}' holds no audio samples")
     if not np.all(np.isfinite(x)):
         raise AudioFormatError(f"'{p}' holds NaN or infinite samples")
+    _check_peak(x, f"'{p}'")
     return x, float(fs)
+
+
+def _check_peak(x: np.ndarray, what: str) -> None:
+    peak = float(np.max(np.abs(x))) if x.size else 0.0
+    if peak > MAX_SAMPLE_ABS:
+        raise AudioFormatError(
+            f"{what} holds a sample of magnitude {peak:.3g}, beyond {MAX_SAMPLE_ABS:g}: not "
+            "a recording (float files are read as they are, full scale is 1)"
+        )
 
 
 def open_audio(path: str | os.PathLike):
@@ -133,6 +224,7 @@ def read_frames(f, start: int, stop: int) -> np.ndarray:
         raise AudioFormatError(f"'{f.name}': cannot read samples {start}-{stop} ({e})") from e
     if not np.all(np.isfinite(x)):
         raise AudioFormatError(f"'{f.name}' holds NaN or infinite samples (from sample {start})")
+    _check_peak(x, f"'{f.name}' (from sample {start})")
     return x
 
 

@@ -57,7 +57,16 @@ def check_speed(speed_m_s: float) -> float:
 
 def self_distances(self_distance_m, n_devices: int) -> np.ndarray:
     """Broadcast one self-distance, or check a list of ``n_devices`` of them (metres)."""
-    s = np.atleast_1d(np.asarray(self_distance_m, dtype=np.float64))
+    vals = self_distance_m if isinstance(self_distance_m, (list, tuple)) else [self_distance_m]
+    for v in vals if isinstance(vals, (list, tuple)) else ():
+        if isinstance(v, (bool, str)) or v is None:
+            raise V.InvalidParameterError(f"self_distance_m={v!r} must be a number")
+    try:
+        s = np.atleast_1d(np.asarray(self_distance_m, dtype=np.float64))
+    except (TypeError, ValueError, OverflowError):
+        raise V.InvalidParameterError(
+            f"self_distance_m={self_distance_m!r} must be a number or a list of numbers"
+        ) from None
     if s.ndim != 1 or len(s) not in (1, n_devices):
         raise IncompatibleInputError(
             f"{len(s)} self-distances given for {n_devices} devices: give one, or one per device"
