@@ -41,7 +41,11 @@ def beep_options(f):
     """--freq/--bursts/--spacing/--burst-len/--taper/--beep-fs: the beep that was played."""
     opts = [
         click.option(
-            "--freq", "f_hz", type=float, default=None, help="Beep frequency in Hz [16000]."
+            "--freq",
+            "f_hz",
+            type=FiniteRange(1.0, 1e7),
+            default=None,
+            help="Beep frequency in Hz [16000].",
         ),
         click.option(
             "--bursts",
@@ -72,7 +76,7 @@ def beep_options(f):
         click.option(
             "--beep-fs",
             "beep_fs",
-            type=float,
+            type=FiniteRange(1000.0, 1e7),
             default=None,
             help="Sample rate the beep is defined at, Hz [44100].",
         ),

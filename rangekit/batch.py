@@ -1061,6 +1061,8 @@ def run_batch(
     jobs = int(jobs)
     if jobs < 1:
         raise InvalidParameterError(f"jobs={jobs} must be >= 1")
+    if scheduler is not None:
+        check_scheduler_address(scheduler)
     results = ResultsFile(output, options, resume=resume)
     order = [s.name for s in sessions]
     todo = [s for s in sessions if s.name not in results.done]
@@ -1124,6 +1126,16 @@ _ADDRESS_RE = re.compile(
 )
 
 
+def check_scheduler_address(address: str) -> re.Match:
+    """The parts of a ``[tcp://|tls://]HOST:PORT`` address, else InvalidParameterError."""
+    m = _ADDRESS_RE.match(str(address).strip())
+    if m is None or not 0 < int(m["port"]) < 65536:
+        raise InvalidParameterError(
+            f"--scheduler {address!r} is not an address of the form tcp://HOST:PORT"
+        )
+    return m
+
+
 def _dask_client(Client, address: str):
     """A connected Dask client, or an error within about DASK_CONNECT_TIMEOUT_S.
 
@@ -1134,11 +1146,7 @@ def _dask_client(Client, address: str):
     import socket
     import threading
 
-    m = _ADDRESS_RE.match(address.strip())
-    if m is None or not 0 < int(m["port"]) < 65536:
-        raise InvalidParameterError(
-            f"--scheduler {address!r} is not an address of the form tcp://HOST:PORT"
-        )
+    m = check_scheduler_address(address)
     t = DASK_CONNECT_TIMEOUT_S
     where = f"the Dask scheduler at {address}"
     try:
