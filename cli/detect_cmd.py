@@ -40,11 +40,11 @@ _TEMPLATE_OPTIONS = {
 @template_option
 @click.option(
     "--expected",
-    type=click.IntRange(min=1),
+    type=click.IntRange(1, 10000),
     default=None,
     metavar="N",
     help="With --template: the number of emissions in each channel (e.g. 2 for a two-way "
-    "exchange); exactly N arrivals, the ones `range` uses.",
+    "exchange), at most 10000; exactly N arrivals, the ones `range` uses.",
 )
 @click.option(
     "--min-separation",

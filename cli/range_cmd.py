@@ -364,6 +364,9 @@ def _range_ultrasonic(files, scheme, temp_c, speed, fmt, output, kw, series_opts
         )
         sink.run(items, {"scheme": scheme, "series": True, "files": [str(files[0])]})
         return
+    from rangekit.io.audio import check_period
+
+    check_period(files, args["period_s"])
     rows = range_ultrasonic_files(
         files, scheme=scheme, channels=channels, burst=burst, **extra, **args
     )

@@ -121,7 +121,11 @@ def _parse_point(text: str, name: str) -> list[float]:
     "--absorption", type=float, default=0.3, show_default=True, help="Wall energy absorption."
 )
 @click.option(
-    "--order", type=int, default=1, show_default=True, help="Image-source reflection order."
+    "--order",
+    type=click.IntRange(0, 12),
+    default=1,
+    show_default=True,
+    help="Image-source reflection order, at most 12 (the images grow as (2 order + 1)^3).",
 )
 @temperature_option
 @click.option(
@@ -131,7 +135,12 @@ def _parse_point(text: str, name: str) -> list[float]:
     "--fs", type=float, default=44100.0, show_default=True, help="Recording sample rate, Hz."
 )
 @click.option("--mono", is_flag=True, help="Write one mono WAV per device (NAME_devI.wav).")
-@click.option("--seed", type=int, default=None, help="Random seed (recording starts, noise).")
+@click.option(
+    "--seed",
+    type=click.IntRange(0, 2**63 - 1),
+    default=None,
+    help="Random seed, >= 0 (recording starts, noise).",
+)
 @beep_options
 @impair_option
 @click.option(
@@ -275,7 +284,9 @@ def _ultrasonic_synth_options(f):
             show_default=True,
             help="Sample rate, Hz.",
         ),
-        click.option("--seed", type=int, default=None, help="Random seed (noise)."),
+        click.option(
+            "--seed", type=click.IntRange(0, 2**63 - 1), default=None, help="Random seed, >= 0."
+        ),
         click.option("--no-noise", is_flag=True, help="Render without noise."),
         impair_option,
         click.option(
@@ -421,6 +432,11 @@ def synth_oneway(
                 f"{r!r} must be DELAY_MS,GAIN (> 0)", param_hint="--reflection"
             )
         extra.append((v[0] * 1e-3, v[1]))
+    from rangekit.io.audio import check_memory
+
+    n_tx = len(pts)
+    frames = int((n_windows or n_tx) * period * fs)
+    check_memory(output, frames, 3, hint="render fewer --windows")  # before rendering
     t = Transducer(q=q)
     sim = render_oneway(
         pts,

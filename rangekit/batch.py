@@ -96,6 +96,9 @@ AUDIO_SUFFIXES = (".wav", ".flac", ".ogg", ".aif", ".aiff")
 SCHEMES = ("beepbeep", "oneway", "echo")
 #: Seconds to wait for a Dask scheduler to answer before giving up.
 DASK_CONNECT_TIMEOUT_S = 10.0
+#: Seconds without a finished Dask task after which the batch checks that the cluster
+#: still has workers (none: the batch stops with exit 3 instead of waiting forever).
+DASK_WATCHDOG_S = 30.0
 
 _DEV_RE = re.compile(r"^(?P<name>.+)_dev(?P<i>\d+)$")
 
@@ -732,6 +735,9 @@ def _ultrasonic_rows(session: Session, scheme: str, opts: BatchOptions) -> list[
         kw["period_s"] = p["period_s"]
     if "latency_s" in p and scheme == "oneway":
         kw["latency_s"] = p["latency_s"]
+    from rangekit.io.audio import check_period
+
+    check_period(session.files, kw.get("period_s"))
     truth = {(w, c): d for w, c, d in session.truth}
     rows = []
     for r in range_ultrasonic_files(list(session.files), scheme=scheme, **kw):
@@ -1176,19 +1182,54 @@ def _dask_client(Client, address: str):
 
 def _run_dask(address: str, chunks: list[list[Session]], options, record) -> None:
     try:
-        from distributed import Client, as_completed
+        from distributed import Client
     except ImportError:
         raise InvalidParameterError(
             "--scheduler needs Dask: pip install 'rangekit[dask]' (dask[distributed])"
         ) from None
+    from distributed import wait
+
     client = _dask_client(Client, address)
     try:
         futs = [client.submit(_run_chunk, c, options, pure=False) for c in chunks]
-        for f in as_completed(futs):
-            for rows in f.result():
-                record(rows)
+        _dask_watch(client, futs, record, address=address, wait=wait)
     finally:
         client.close()
+
+
+def _dask_watch(client, futs, record, *, address: str, wait) -> None:
+    """Record the chunks' rows as their tasks finish, watching the cluster.
+
+    Every :data:`DASK_WATCHDOG_S` without a finished task the scheduler is asked for its
+    workers: none left (they died), or no answer, stops the batch with an InputFileError
+    (exit 3) instead of waiting forever; so does a task that failed on the cluster (a
+    worker killed while running it, ``KilledWorker``). Every session finished before is
+    in the results file (rerun with ``--resume``)."""
+    pending = set(futs)
+    where = f"the Dask cluster at {address}"
+    again = "every finished session is in the results file; rerun with --resume"
+    while pending:
+        try:
+            done, pending = wait(pending, timeout=DASK_WATCHDOG_S, return_when="FIRST_COMPLETED")
+        except TimeoutError:
+            try:
+                workers = client.scheduler_info().get("workers", {})
+            except Exception as e:
+                raise InputFileError(f"lost {where} ({type(e).__name__}: {e}); {again}") from None
+            if not workers:
+                raise InputFileError(
+                    f"{where} has no worker left: {len(pending)} task(s) cannot run; {again}"
+                ) from None
+            continue
+        for f in done:
+            try:
+                chunk = f.result()
+            except Exception as e:  # KilledWorker, a worker's own failure
+                raise InputFileError(
+                    f"a task failed on {where} ({type(e).__name__}: {e}); {again}"
+                ) from None
+            for rows in chunk:
+                record(rows)
 
 
 def iter_rows(path: str | os.PathLike) -> Iterable[dict[str, Any]]:

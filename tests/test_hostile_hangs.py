@@ -168,3 +168,66 @@ def test_memory_budget_refuses_whole_file_reads_with_a_hint(tmp_path, monkeypatc
     assert_error(run(["--memory-budget", "1M", "range", REC]), 5, "memory budget of 1.0 MiB")
     ok(run(["--memory-budget", "off", "range", REC]))
     assert_error(run(["--memory-budget", "lots", "range", REC]), 2, "--memory-budget")
+
+
+def test_echo_recording_shorter_than_one_period_is_exit_5(tmp_path):
+    import numpy as np
+    from clihelp import assert_error, run
+
+    from rangekit.io.audio import write_audio
+
+    write_audio(tmp_path / "e.wav", np.zeros(1000), fs=192000.0)
+    r = run(["range", "--scheme", "echo", tmp_path / "e.wav", "--period", "1"])
+    assert_error(r, 5, "e.wav", "shorter than one window of --period 1 s")
+    os.mkfifo(tmp_path / "p.wav")
+    r = run(["range", "--scheme", "echo", tmp_path / "p.wav", "--period", "1"])
+    assert_error(r, 3, "p.wav", "FIFO")
+
+
+class _Fut:
+    def __init__(self, rows=None, error=None):
+        self.rows, self.error = rows, error
+
+    def result(self):
+        if self.error is not None:
+            raise self.error
+        return self.rows
+
+
+class _Client:
+    def __init__(self, workers):
+        self.workers = workers
+
+    def scheduler_info(self):
+        if isinstance(self.workers, Exception):
+            raise self.workers
+        return {"workers": self.workers}
+
+
+def test_dask_watchdog_stops_when_workers_die_or_a_task_is_killed():
+    from rangekit.batch import _dask_watch
+
+    got = []
+    ok_fut, stuck = _Fut([["r1"], ["r2"]]), _Fut()
+    calls = []
+
+    def wait(pending, timeout, return_when):
+        calls.append(len(pending))
+        if ok_fut in pending:
+            return {ok_fut}, pending - {ok_fut}
+        raise TimeoutError
+
+    for workers, why in [({}, "has no worker left: 1 task"), (OSError("gone"), "lost the Dask")]:
+        got.clear()
+        with pytest.raises(InputFileError, match=why) as e:
+            _dask_watch(_Client(workers), [ok_fut, stuck], got.append, address="h:1", wait=wait)
+        assert got == [["r1"], ["r2"]] and "--resume" in str(e.value)
+    killed = _Fut(error=RuntimeError("KilledWorker: worker died 3 times"))
+    with pytest.raises(InputFileError, match=r"a task failed on .*KilledWorker"):
+        _dask_watch(
+            _Client({"w": 1}),
+            [killed],
+            got.append,
+            address="tcp://h:1",
+            wait=lambda p, timeout, return_when: (set(p), set()),
+        )

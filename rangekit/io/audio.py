@@ -93,7 +93,9 @@ def _size(n: int) -> str:
     return f"{n / 2**30:.2f} GiB" if n >= 2**30 else f"{n / 2**20:.1f} MiB"
 
 
-def check_memory(path: str | os.PathLike, frames: int, channels: int) -> None:
+def check_memory(
+    path: str | os.PathLike, frames: int, channels: int, *, hint: str | None = None
+) -> None:
     """Refuse a whole-file read whose estimated peak exceeds :func:`memory_budget`.
 
     Raises
@@ -107,8 +109,8 @@ def check_memory(path: str | os.PathLike, frames: int, channels: int) -> None:
         raise IncompatibleInputError(
             f"'{os.fspath(path)}': {frames} frames x {channels} channel(s) need about "
             f"{_size(need)} to process whole, more than the memory budget of "
-            f"{_size(budget)}: use `rangekit range --series` (bounded memory), or "
-            f"raise the budget (rangekit --memory-budget SIZE, or ${BUDGET_ENV})"
+            f"{_size(budget)}: {hint or 'use `rangekit range --series` (bounded memory)'}, "
+            f"or raise the budget (rangekit --memory-budget SIZE, or ${BUDGET_ENV})"
         )
 
 
@@ -226,6 +228,26 @@ def read_frames(f, start: int, stop: int) -> np.ndarray:
         raise AudioFormatError(f"'{f.name}' holds NaN or infinite samples (from sample {start})")
     _check_peak(x, f"'{f.name}' (from sample {start})")
     return x
+
+
+def check_period(paths: Sequence[str | os.PathLike], period_s: float | None) -> None:
+    """Refuse recordings shorter than one ``period_s`` window (ultrasonic ``--period``)
+    before they are ranged: IncompatibleInputError naming the file (exit 5). Unreadable
+    files are left to the reader's own error."""
+    if period_s is None:
+        return
+    sf = _sf()
+    for p in paths:
+        try:
+            _readable(p)  # never opens a FIFO or a device
+            info = sf.info(os.fspath(p))
+        except Exception:  # the reader reports it properly
+            continue
+        if info.frames < period_s * info.samplerate:
+            raise IncompatibleInputError(
+                f"'{os.fspath(p)}' lasts {info.frames / info.samplerate:.4g} s, shorter than "
+                f"one window of --period {period_s:g} s"
+            )
 
 
 def load_devices(paths: Sequence[str | os.PathLike], *, min_devices: int = 2) -> list[Channel]:
