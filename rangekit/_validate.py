@@ -66,10 +66,11 @@ def sample_rate(fs: float) -> float:
 MAX_SAMPLE_ABS = 1e100
 
 
-def signal_1d(name: str, x) -> np.ndarray:
-    """Return ``x`` as a contiguous 1-D float64 array of finite values of magnitude at
-    most :data:`MAX_SAMPLE_ABS` (InvalidParameterError otherwise, never a bare
-    ValueError/TypeError: strings, complex values and ragged lists are refused too)."""
+def signal_1d(name: str, x, *, max_abs: float | None = None) -> np.ndarray:
+    """Return ``x`` as a contiguous 1-D float64 array of finite values (InvalidParameterError
+    otherwise, never a bare ValueError/TypeError: strings, complex values and ragged lists
+    are refused too). With ``max_abs`` (signals: :data:`MAX_SAMPLE_ABS`) values of larger
+    magnitude are refused as well."""
     import warnings
 
     try:
@@ -82,8 +83,8 @@ def signal_1d(name: str, x) -> np.ndarray:
         raise InvalidParameterError(f"{name} must be 1-D, got shape {a.shape}")
     if not np.all(np.isfinite(a)):
         raise InvalidParameterError(f"{name} contains NaN or infinite values")
-    if a.size and float(np.max(np.abs(a))) > MAX_SAMPLE_ABS:
+    if max_abs is not None and a.size and float(np.max(np.abs(a))) > max_abs:
         raise InvalidParameterError(
-            f"{name} holds values beyond +-{MAX_SAMPLE_ABS:g} (their energy overflows)"
+            f"{name} holds values beyond +-{max_abs:g} (their energy overflows)"
         )
     return a

@@ -1,6 +1,6 @@
 """Property tests (hypothesis, seeded): public detection, ranging and reading functions
 given arbitrary arguments raise only the RangekitError family and leak no warnings
-(issue 17). About 5,500 examples in all; every run draws the same ones (derandomize)."""
+(issue 17). About 6,200 examples in all; every run draws the same ones (derandomize)."""
 
 from __future__ import annotations
 
@@ -212,3 +212,47 @@ def test_guarded_json_and_sidecar_values(text):
     if isinstance(obj, dict):
         for scheme in (None, "beepbeep", "oneway", "echo"):
             _quietly(_sidecar_values, obj, scheme)
+
+
+@settings(max_examples=300, **SETTINGS)
+@given(
+    x=signals(max_len=20000),
+    fs=st.one_of(st.just(192000.0), ANY),
+    period=st.one_of(st.none(), SCALE),
+    lat=st.one_of(st.just(0.0), ANY),
+    hi=st.one_of(st.just(15.0), ANY),
+    c=st.one_of(st.none(), ANY),
+    t=st.one_of(st.just(20.0), ANY),
+)
+def test_range_oneway(x, fs, period, lat, hi, c, t):
+    from rangekit.ranging.ultrasonic import range_oneway
+
+    kw = dict(period_s=period, latency_s=lat, max_range_m=hi, speed_m_s=c, temp_c=t)
+    _quietly(range_oneway, x, fs=fs, tx=None, rx=None, **kw)
+
+
+@settings(max_examples=300, **SETTINGS)
+@given(
+    x=signals(max_len=20000),
+    fs=st.one_of(st.just(192000.0), ANY),
+    lo=st.one_of(st.just(0.15), ANY),
+    hi=st.one_of(st.just(6.0), ANY),
+    t=st.one_of(st.just(20.0), ANY),
+)
+def test_range_echo(x, fs, lo, hi, t):
+    from rangekit.ranging.ultrasonic import range_echo
+
+    _quietly(range_echo, x, fs=fs, min_range_m=lo, max_range_m=hi, temp_c=t)
+
+
+@pytest.mark.xfail(
+    strict=True,
+    raises=IndexError,
+    reason="known bug for the detection engineers: range_echo on a recording shorter than "
+    "one period_s raises IndexError (rangekit/ranging/ultrasonic.py, the windows loop); "
+    "the CLI and batch refuse such files first (rangekit.io.audio.check_period)",
+)
+def test_range_echo_shorter_than_one_period():
+    from rangekit.ranging.ultrasonic import range_echo
+
+    _quietly(range_echo, np.zeros(2), fs=192000.0, period_s=1.0)

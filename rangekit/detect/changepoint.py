@@ -767,7 +767,7 @@ def detect_changepoint(
     """
     beep = Beep() if beep is None else beep
     fs = V.sample_rate(fs)
-    x = V.signal_1d("x", x)
+    x = V.signal_1d("x", x, max_abs=V.MAX_SAMPLE_ABS)
     check_beep_fits(beep, fs=fs)
     win_s = V.in_range("win_s", win_s, 1e-5, 1.0)
     hop_s = V.in_range("hop_s", hop_s, 1e-7, 1.0)

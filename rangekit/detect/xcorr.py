@@ -79,7 +79,7 @@ def detect_xcorr(
 
     beep = Beep() if beep is None else beep
     fs = V.sample_rate(fs)
-    x = V.signal_1d("x", x)
+    x = V.signal_1d("x", x, max_abs=V.MAX_SAMPLE_ABS)
     check_beep_fits(beep, fs=fs)
     threshold_db = V.in_range("threshold_db", threshold_db, -100.0, 200.0)
     min_confidence = V.in_range("min_confidence", min_confidence, 0.0, 1.0)

@@ -62,12 +62,16 @@ def _label(path: Path) -> str:
 
 def _csv_header(path: Path) -> list[str]:
     """The header cells of a CSV file (first line that is neither blank nor a comment)."""
+    from rangekit.errors import InputFileError
+    from rangekit.io.guard import regular_file
+
     try:
+        regular_file(path)  # never opens a FIFO or a device
         with open(path, newline="", encoding="utf-8") as fh:
             for line in fh:
                 if line.strip() and not line.lstrip().startswith("#"):
                     return [h.strip() for h in next(csv.reader([line]))]
-    except (OSError, UnicodeDecodeError):
+    except (OSError, UnicodeDecodeError, csv.Error, InputFileError):
         return []  # read_table raises the right error
     return []
 

@@ -48,6 +48,8 @@ __all__ = [
 
 #: Default 1-sigma sample-clock tolerance of a device, ppm.
 DEFAULT_CLOCK_PPM = 30.0
+#: Largest arrival time (and sigma) accepted, s (about 115 days of recording).
+MAX_ONSET_S = 1e7
 
 
 def check_speed(speed_m_s: float) -> float:
@@ -135,6 +137,12 @@ def range_beepbeep(
             raise DetectionError(
                 f"device {i}: found {found} but expected {n} (one per device); "
                 "run `rangekit detect` on the file to see what was found"
+            )
+    for i, a in enumerate(arrivals):
+        ok = np.all(np.isfinite(a.onset_s)) and np.all(np.abs(a.onset_s) <= MAX_ONSET_S)
+        if not ok or not np.all(np.isfinite(a.sigma_s) & (a.sigma_s <= MAX_ONSET_S)):
+            raise V.InvalidParameterError(
+                f"device {i}: onsets and sigmas must be finite and within {MAX_ONSET_S:g} s"
             )
     t = [a.onset_s for a in arrivals]
     v = [a.sigma_s**2 for a in arrivals]
