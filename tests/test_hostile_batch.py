@@ -231,3 +231,14 @@ def test_calibration_values_are_checked(tmp_path):
         with pytest.raises(InputFileError, match="not a valid rangekit calibration") as e:
             read_calibration(_cal(tmp_path, **change))
         assert why in str(e.value) and e.value.exit_code == 3
+
+
+def test_broken_neighbour_sidecar_of_a_named_file(tmp_path):
+    d = _archive(tmp_path)
+    shutil.copy(FIX / "beepbeep_2p5m.wav", d / "x.wav")
+    (d / "x.json").write_text("{broken")
+    (d / "notes.json").write_text("{also broken")  # about nothing that was asked for
+    s = _sessions(d / "x.wav")
+    assert list(s) == ["x"] and "x.json" in s["x"].problem
+    s = _sessions(d / "good.wav")
+    assert list(s) == ["good"] and s["good"].problem is None
