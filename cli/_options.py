@@ -41,22 +41,42 @@ def beep_options(f):
     """--freq/--bursts/--spacing/--burst-len/--taper/--beep-fs: the beep that was played."""
     opts = [
         click.option(
-            "--freq", "f_hz", type=float, default=None, help="Beep frequency in Hz [16000]."
-        ),
-        click.option("--bursts", "n_bursts", type=int, default=None, help="Bursts per beep [4]."),
-        click.option(
-            "--spacing", type=int, default=None, help="Samples between burst starts [5000]."
-        ),
-        click.option(
-            "--burst-len", "burst_len", type=int, default=None, help="Samples per burst [441]."
+            "--freq",
+            "f_hz",
+            type=FiniteRange(1.0, 1e7),
+            default=None,
+            help="Beep frequency in Hz [16000].",
         ),
         click.option(
-            "--taper", type=int, default=None, help="Raised-cosine taper samples at each end [22]."
+            "--bursts",
+            "n_bursts",
+            type=click.IntRange(1, 64),
+            default=None,
+            help="Bursts per beep, at most 64 (the detectors' work grows with it) [4].",
+        ),
+        click.option(
+            "--spacing",
+            type=click.IntRange(1, 10**7),
+            default=None,
+            help="Samples between burst starts; the whole beep lasts at most 10 s [5000].",
+        ),
+        click.option(
+            "--burst-len",
+            "burst_len",
+            type=click.IntRange(8, 10**7),
+            default=None,
+            help="Samples per burst [441].",
+        ),
+        click.option(
+            "--taper",
+            type=click.IntRange(0, 10**7),
+            default=None,
+            help="Raised-cosine taper samples at each end [22].",
         ),
         click.option(
             "--beep-fs",
             "beep_fs",
-            type=float,
+            type=FiniteRange(1000.0, 1e7),
             default=None,
             help="Sample rate the beep is defined at, Hz [44100].",
         ),
@@ -246,7 +266,8 @@ def output_option(f):
         "--output",
         type=click.Path(dir_okay=False),
         default=None,
-        help="Write here instead of stdout.",
+        help="Write here (atomically) instead of stdout; - is stdout. Refused: a link, a "
+        "directory, a device or an input file.",
     )(f)
 
 
@@ -275,11 +296,68 @@ def debug_option(f):
     @click.option("--debug", is_flag=True, help="Show tracebacks of errors.")
     @functools.wraps(f)
     def wrapper(*args, debug: bool, **kw):
+        ctx = click.get_current_context()
         if debug:
-            click.get_current_context().find_root().meta["rangekit.debug"] = True
+            ctx.find_root().meta["rangekit.debug"] = True
+        guard_output(ctx, kw)
         return f(*args, **kw)
 
     return wrapper
+
+
+def input_paths(ctx: click.Context, kw: dict) -> list[str]:
+    """Every path the command reads: its arguments and its ``click.Path`` options other
+    than ``-o`` (``a.wav+b.wav@0.5`` counts as ``a.wav`` and ``b.wav``)."""
+    import re
+
+    out: list[str] = []
+    for p in ctx.command.params:
+        if p.name == "output" or p.name not in kw:
+            continue
+        if not (isinstance(p, click.Argument) or isinstance(p.type, click.Path)):
+            continue
+        v = kw[p.name]
+        for item in v if isinstance(v, (list, tuple)) else (v,):
+            if isinstance(item, str):
+                out.append(item)
+                out.extend(t for t in re.split(r"[+@]", item) if t and t != item)
+    return out
+
+
+def check_outputs(paths) -> None:
+    """:func:`rangekit.io.guard.check_output` for every file a command derives from
+    ``-o`` (``synth``: ``NAME.json``, ``NAME_devI.wav``) against the command's inputs."""
+    from rangekit.io.guard import check_output
+
+    ctx = click.get_current_context()
+    inputs = input_paths(ctx, ctx.params)
+    for p in paths:
+        check_output(p, inputs)
+
+
+def guard_output(ctx: click.Context, kw: dict) -> None:
+    """Check ``-o`` before any work (every command, through :func:`debug_option`).
+
+    ``-o -`` is standard output (``kw["output"]`` becomes None) where ``-o`` is
+    optional, a usage error where the command must write a file. Otherwise the output
+    must not be a symbolic link, a directory, a device or a FIFO, nor the same file as
+    any input (:func:`rangekit.io.guard.check_output`; exit 2), and its folder must exist
+    (exit 3).
+    """
+    out = kw.get("output")
+    if out is None:
+        return
+    param = next((p for p in ctx.command.params if p.name == "output"), None)
+    if out == "-":
+        if param is not None and not param.required:
+            kw["output"] = None
+            return
+        raise click.UsageError(
+            "-o - (standard output) is not possible here: this command writes a file"
+        )
+    from rangekit.io.guard import check_output
+
+    check_output(out, input_paths(ctx, kw))
 
 
 def float_list(
@@ -303,8 +381,8 @@ def float_list(
 
 
 def emit(text: str, output: str | None) -> None:
-    """Write results to ``output`` atomically, or to stdout."""
-    if output is None:
+    """Write results to ``output`` atomically, or to stdout (None or ``-``)."""
+    if output is None or output == "-":
         click.echo(text, nl=not text.endswith("\n"))
     else:
         from rangekit.io.sidecar import write_text_atomic

@@ -156,6 +156,10 @@ def batch_cmd(
         raise click.UsageError("--jobs and --scheduler exclude each other")
     if scheduler is not None and not scheduler.strip():
         raise click.BadParameter("empty address", param_hint="--scheduler")
+    if scheduler is not None:
+        from rangekit.batch import check_scheduler_address
+
+        check_scheduler_address(scheduler)  # before any output (exit 2)
     if pair_by_name and scheme != "beepbeep":
         raise click.UsageError("--pair-by-name applies to --scheme beepbeep only")
     if pair_by_name and len(inputs) < 2:
@@ -194,6 +198,7 @@ def batch_cmd(
 
     def progress(done: int, total: int) -> None:
         if quiet:
+            state["last"] = done  # counted for the interrupt message
             return
         if state["bar"] is None:  # first call: done = sessions found in a resumed file
             from rangekit_cli._progress import Progress

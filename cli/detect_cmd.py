@@ -29,11 +29,11 @@ _TEMPLATE_OPTIONS = {
 @template_option
 @click.option(
     "--expected",
-    type=click.IntRange(min=1),
+    type=click.IntRange(1, 10000),
     default=None,
     metavar="N",
-    help="The number of emissions in each channel (e.g. 2 for a two-way exchange): at most "
-    "N arrivals, the best supported; the ones `range` uses.",
+    help="The number of emissions in each channel (e.g. 2 for a two-way exchange), at most "
+    "10000: at most N arrivals, the best supported; the ones `range` uses.",
 )
 @click.option(
     "--min-separation",
@@ -116,7 +116,8 @@ def detect_cmd(files, detector, template, expected, min_separation, weighting, f
         meta["template"] = template
     if expected is not None:
         meta["expected"] = expected
-    emit(format_arrivals(rows, fmt, meta=meta), output)
+    if not (empty and output is not None):  # a failed run leaves -o FILE untouched
+        emit(format_arrivals(rows, fmt, meta=meta), output)
     if empty:
         what = "no beep" if probe is None else f"no arrival of '{template}'"
         click.echo(f"rangekit: error: {what} found in {', '.join(empty)}", err=True)

@@ -105,9 +105,18 @@ def _version() -> str:
 
 @click.group(cls=RangekitGroup, context_settings={"help_option_names": ["-h", "--help"]})
 @click.option("--debug", is_flag=True, help="Show tracebacks of errors.")
+@click.option(
+    "--memory-budget",
+    "memory_budget",
+    default=None,
+    metavar="SIZE|off",
+    help="Most memory a whole-file command may plan to use (512M, 4G, off); a recording "
+    "needing more is refused with a hint to --series [half the available memory; "
+    "$RANGEKIT_MEMORY_BUDGET].",
+)
 @click.version_option(version=None, package_name="rangekit", prog_name="rangekit")
 @click.pass_context
-def cli(ctx: click.Context, debug: bool) -> None:
+def cli(ctx: click.Context, debug: bool, memory_budget: str | None) -> None:
     """rangekit: acoustic and ultrasonic ranging from WAV files.
 
     \b
@@ -121,6 +130,16 @@ def cli(ctx: click.Context, debug: bool) -> None:
     Exit codes are listed in docs/cli.md.
     """
     ctx.meta["rangekit.debug"] = debug
+    if memory_budget is not None:
+        import os
+
+        from rangekit.io.audio import BUDGET_ENV, parse_size
+
+        try:
+            parse_size(memory_budget)
+        except ValueError as e:
+            raise click.BadParameter(str(e), param_hint="--memory-budget") from None
+        os.environ[BUDGET_ENV] = memory_budget  # inherited by batch workers
 
 
 def main(argv: list[str] | None = None) -> None:

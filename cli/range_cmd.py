@@ -440,6 +440,9 @@ def _range_ultrasonic(files, scheme, temp_c, speed, fmt, output, kw, series_opts
         )
         sink.run(items, {"scheme": scheme, "series": True, "files": [str(files[0])]})
         return
+    from rangekit.io.audio import check_period
+
+    check_period(files, args["period_s"])
     rows = range_ultrasonic_files(
         files, scheme=scheme, channels=channels, burst=burst, **extra, **args
     )
@@ -517,16 +520,17 @@ class SeriesSink:
     def _open(self) -> None:
         if self.output is None or self._file is not None:
             return
+        import tempfile
         from pathlib import Path
 
         from rangekit.errors import InputFileError
+        from rangekit.io.guard import check_output
 
-        p = Path(self.output)
-        if not p.parent.exists():
-            raise InputFileError(f"cannot write '{p}': folder '{p.parent}' does not exist")
-        self._tmp = p.with_name(f".{p.name}.part")
-        try:
-            self._file = open(self._tmp, "w", encoding="utf-8", newline="")
+        p = check_output(self.output)
+        try:  # exclusive, random name, in the target's folder (rangekit.io.guard)
+            fd, self._tmp = tempfile.mkstemp(prefix=f".{p.name}.", suffix=".part", dir=p.parent)
+            self._tmp = Path(self._tmp)
+            self._file = open(fd, "w", encoding="utf-8", newline="")
         except OSError as e:
             raise InputFileError(f"cannot write '{p}': {e.strerror or e}") from e
 
@@ -547,8 +551,13 @@ class SeriesSink:
                 os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
                 raise click.exceptions.Exit(EXIT_BROKEN_PIPE) from None
         else:
-            self._file.write(text)
-            self._file.flush()
+            try:
+                self._file.write(text)
+                self._file.flush()
+            except OSError as e:  # a full disk: the .part file is removed by run()
+                from rangekit.errors import InputFileError
+
+                raise InputFileError(f"cannot write '{self.output}': {e.strerror or e}") from e
 
     def _csv(self, rows: list[dict]) -> None:
         from rangekit.io.results import format_rows
@@ -617,11 +626,21 @@ class SeriesSink:
             if self._bar is not None:
                 self._bar.close()
             if self._file is not None:
-                self._file.close()
-                if ok:
-                    os.replace(self._tmp, self.output)
-                else:
-                    self._tmp.unlink(missing_ok=True)
+                try:
+                    self._file.close()
+                    if ok:
+                        from rangekit.io.guard import default_mode
+
+                        os.chmod(self._tmp, default_mode())
+                        os.replace(self._tmp, self.output)
+                except OSError as e:
+                    ok = False
+                    from rangekit.errors import InputFileError
+
+                    raise InputFileError(f"cannot write '{self.output}': {e.strerror or e}") from e
+                finally:
+                    if not ok:
+                        self._tmp.unlink(missing_ok=True)
         if self.fmt == "table":
             emit(format_rows(self._table(collected), self.fields, "table"), self.output)
         elif self.fmt == "json":

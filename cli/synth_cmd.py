@@ -8,6 +8,7 @@ import click
 from rangekit_cli._options import (
     FiniteRange,
     beep_options,
+    check_outputs,
     debug_option,
     float_list,
     load_template,
@@ -122,7 +123,11 @@ def _parse_point(text: str, name: str) -> list[float]:
     "--absorption", type=float, default=0.3, show_default=True, help="Wall energy absorption."
 )
 @click.option(
-    "--order", type=int, default=1, show_default=True, help="Image-source reflection order."
+    "--order",
+    type=click.IntRange(0, 12),
+    default=1,
+    show_default=True,
+    help="Image-source reflection order, at most 12 (the images grow as (2 order + 1)^3).",
 )
 @temperature_option
 @click.option(
@@ -155,7 +160,12 @@ def _parse_point(text: str, name: str) -> list[float]:
     help="With --exchanges: each gap between two devices' plays is lengthened by a uniform "
     "random time in [0, S] seconds [0].",
 )
-@click.option("--seed", type=int, default=None, help="Random seed (recording starts, noise).")
+@click.option(
+    "--seed",
+    type=click.IntRange(0, 2**63 - 1),
+    default=None,
+    help="Random seed, >= 0 (recording starts, noise).",
+)
 @beep_options
 @click.option(
     "--template",
@@ -292,6 +302,7 @@ def synth_beepbeep(
         files = [out.with_name(f"{out.stem}_dev{i}{out.suffix or '.wav'}") for i in range(n)]
     else:
         files = [out]
+    check_outputs([*files, out.with_suffix(".json")])
     for f, x in zip(files, recordings, strict=True):
         write_audio(f, x, fs=fs)
     truth["files"] = [f.name for f in files]
@@ -339,7 +350,9 @@ def _ultrasonic_synth_options(f):
             show_default=True,
             help="Sample rate, Hz.",
         ),
-        click.option("--seed", type=int, default=None, help="Random seed (noise)."),
+        click.option(
+            "--seed", type=click.IntRange(0, 2**63 - 1), default=None, help="Random seed, >= 0."
+        ),
         click.option("--no-noise", is_flag=True, help="Render without noise."),
         impair_option,
         click.option(
@@ -489,6 +502,11 @@ def synth_oneway(
                 f"{r!r} must be DELAY_MS,GAIN (> 0)", param_hint="--reflection"
             )
         extra.append((v[0] * 1e-3, v[1]))
+    from rangekit.io.audio import check_memory
+
+    n_tx = len(pts)
+    frames = int((n_windows or n_tx) * period * fs)
+    check_memory(output, frames, 3, hint="render fewer --windows")  # before rendering
     t = Transducer(q=q)
     sim = render_oneway(
         pts,
@@ -511,6 +529,7 @@ def synth_oneway(
     from rangekit.io.duhllog import Beacons
 
     beacons = out.with_suffix(".beacons.json")
+    check_outputs([out, out.with_suffix(".json"), beacons])
     write_audio(out, x, fs=fs)
     truth["seed"] = seed
     truth["files"] = [out.name]
@@ -605,6 +624,7 @@ def synth_echo(map_path, poses, mount, snr_db, no_noise, temp_c, q, fs, seed, im
     )
     out = Path(output)
     x, truth = _ultrasonic_output(sim.x[0], sim.truth, peak=0.9, fs=fs, seed=seed, imp=impairments)
+    check_outputs([out, out.with_suffix(".json")])
     write_audio(out, x, fs=fs)
     truth["seed"] = seed
     truth["map"] = str(map_path)

@@ -45,11 +45,22 @@ def check_header(
         raise InvalidParameterError(f"units={obj['units']!r} must be 'm'")
 
 
-def json_number(where: str, v: Any) -> float:
-    """A finite float from a JSON value, or InvalidParameterError naming ``where``."""
+#: Largest magnitude of a coordinate or length in a JSON input file, m (1000 km: far
+#: beyond any building; larger values overflow the geometry, e.g. squared to inf).
+MAX_COORD_M = 1e6
+
+
+def json_number(where: str, v: Any, *, limit: float = MAX_COORD_M) -> float:
+    """A finite float of magnitude <= ``limit`` from a JSON value (booleans are not
+    numbers), or InvalidParameterError naming ``where``."""
     if isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating)):
         raise InvalidParameterError(f"{where}={v!r} must be a number")
-    f = float(v)
+    try:
+        f = float(v)
+    except OverflowError:  # an int too large for a float
+        f = math.inf
     if not math.isfinite(f):
         raise InvalidParameterError(f"{where}={v!r} must be finite")
+    if abs(f) > limit:
+        raise InvalidParameterError(f"{where}={v!r} must be within [-{limit:g}, {limit:g}]")
     return f

@@ -49,6 +49,7 @@ import glob
 import json
 import os
 import re
+from collections import Counter
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -95,6 +96,9 @@ AUDIO_SUFFIXES = (".wav", ".flac", ".ogg", ".aif", ".aiff")
 SCHEMES = ("beepbeep", "oneway", "echo")
 #: Seconds to wait for a Dask scheduler to answer before giving up.
 DASK_CONNECT_TIMEOUT_S = 10.0
+#: Seconds without a finished Dask task after which the batch checks that the cluster
+#: still has workers (none: the batch stops with exit 3 instead of waiting forever).
+DASK_WATCHDOG_S = 30.0
 
 _DEV_RE = re.compile(r"^(?P<name>.+)_dev(?P<i>\d+)$")
 
@@ -152,53 +156,163 @@ class BatchOptions:
 
 # --- finding sessions ---------------------------------------------------------------------
 
+#: Most entries of a sidecar's ``files`` list.
+MAX_SIDECAR_FILES = 256
 
-def _expand(inputs: Sequence[str | os.PathLike]) -> tuple[list[Path], list[Path], set[Path]]:
-    """Audio files and JSON files named by ``inputs`` (files, folders, globs), and the
-    JSON files found only as neighbours of an input file (resolved paths)."""
-    audio: list[Path] = []
-    jsons: list[Path] = []
 
-    def add(p: Path, explicit: bool) -> None:
+def _printable(text: str) -> str:
+    """``text`` with the undecodable bytes of a file name (surrogate escapes) as ``\\xNN``,
+    so that it can be written as UTF-8 (a session name, an error message)."""
+    try:
+        raw = text.encode("utf-8", "surrogateescape")
+    except UnicodeEncodeError:
+        raw = text.encode("utf-8", "backslashreplace")
+    return raw.decode("utf-8", "backslashreplace")
+
+
+def _walk(root: Path) -> Iterable[Path]:
+    """Files under ``root`` in sorted order; names starting with ``.`` skipped, links to
+    folders not followed (a link loop cannot make the walk endless)."""
+    for dirpath, dirnames, filenames in os.walk(root, followlinks=False):
+        dirnames[:] = sorted(d for d in dirnames if not d.startswith("."))
+        base = Path(dirpath)
+        for f in sorted(filenames):
+            if not f.startswith("."):
+                yield base / f
+
+
+def _refusal(p: Path, root: Path | None) -> str | None:
+    """Why the file ``p`` found under ``root`` is not taken as an input (None: it is).
+
+    It must be a regular file once links are followed (no FIFO, device, socket), and a
+    link must lead inside ``root`` (``None``: a file named on the command line)."""
+    try:
+        st = os.stat(p)
+    except OSError as e:
+        return f"cannot open '{p}': {e.strerror or e}"
+    from rangekit.io.guard import _kind
+
+    kind = _kind(st.st_mode)
+    if kind is not None:
+        return f"cannot open '{p}': it is {kind}, not a regular file"
+    if root is not None and p.is_symlink() and not _inside(p.resolve(), root):
+        return f"'{p}' is a link to a file outside the folder '{root}' (not followed)"
+    return None
+
+
+def _inside(real: Path, root: Path) -> bool:
+    r = root.resolve()
+    return real == r or r in real.parents
+
+
+def _match(parts: tuple[str, ...], pat: tuple[str, ...]) -> bool:
+    """Whether path ``parts`` match glob ``pat`` (``**`` = any number of folders)."""
+    import fnmatch
+
+    if not pat:
+        return not parts
+    if pat[0] == "**":
+        return any(_match(parts[k:], pat[1:]) for k in range(len(parts) + 1))
+    return bool(parts) and fnmatch.fnmatchcase(parts[0], pat[0]) and _match(parts[1:], pat[1:])
+
+
+def _glob(pattern: str) -> tuple[Path, list[Path]]:
+    """The folder a glob starts from (its part without wildcards) and the files it
+    matches, a matched folder standing for every file under it. Links to folders are
+    not followed (``glob.glob`` follows them: three self-links expand exponentially)."""
+    parts = Path(pattern).parts
+    i = next(k for k, part in enumerate(parts) if glob.has_magic(part))
+    root = Path(*parts[:i]) if i else Path(".")
+    rest = parts[i:]
+    hits: list[Path] = []
+    if not root.is_dir():
+        return root, hits
+    deep = "**" in rest
+    for dirpath, dirnames, filenames in os.walk(root, followlinks=False):
+        base = Path(dirpath)
+        rel = base.relative_to(root).parts
+        dirnames[:] = sorted(d for d in dirnames if not d.startswith("."))
+        for d in list(dirnames):
+            if _match((*rel, d), rest) and not (base / d).is_symlink():
+                hits.extend(_walk(base / d))
+        for f in sorted(filenames):
+            if not f.startswith(".") and _match((*rel, f), rest):
+                hits.append(base / f)
+        if not deep and len(rel) + 1 >= len(rest):
+            dirnames[:] = []
+    return root, sorted(set(hits))
+
+
+@dataclass
+class _Found:
+    """What the inputs name: recordings and JSON files with the folder each was found in
+    (the confinement root of its sidecar), neighbour JSONs, and refused files."""
+
+    audio: list[Path] = field(default_factory=list)
+    jsons: list[tuple[Path, Path]] = field(default_factory=list)
+    neighbours: set[Path] = field(default_factory=set)
+    refused: list[tuple[Path, str]] = field(default_factory=list)
+
+
+def _expand(inputs: Sequence[str | os.PathLike]) -> _Found:
+    """Audio files and JSON files named by ``inputs`` (files, folders, globs), the JSON
+    files found only as neighbours of an input file (resolved paths), and the files
+    refused (special files, links out of their folder)."""
+    found = _Found()
+    seen_json: set[Path] = set()
+
+    def add(p: Path, root: Path | None, explicit: bool) -> None:
         suf = p.suffix.lower()
-        if suf == ".json":
-            jsons.append(p)
-        elif suf in AUDIO_SUFFIXES or explicit:
-            audio.append(p)
+        if suf != ".json" and suf not in AUDIO_SUFFIXES and not explicit:
+            return
+        why = _refusal(p, root)
+        if why is not None:
+            if p.absolute() not in seen_json:
+                seen_json.add(p.absolute())
+                found.refused.append((p, why))
+        elif suf == ".json":
+            if p.resolve() not in seen_json:
+                seen_json.add(p.resolve())
+                found.jsons.append((p, root if root is not None else p.parent))
+        else:
+            found.audio.append(p)
 
     for raw in inputs:
         text = os.fspath(raw)
         p = Path(text)
         if p.is_dir():
-            for q in sorted(p.rglob("*")):
-                if q.is_file() and not q.name.startswith("."):
-                    add(q, False)
-        elif p.exists():
-            add(p, True)
+            for q in _walk(p):
+                add(q, p, False)
+        elif os.path.lexists(p):
+            add(p, None, True)
         elif glob.has_magic(text):
-            hits = sorted(glob.glob(text, recursive=True))
+            root, hits = _glob(text)
             if not hits:
-                raise InputFileError(f"'{text}' matches no file")
-            for h in hits:
-                q = Path(h)
-                if q.is_dir():
-                    for r in sorted(q.rglob("*")):
-                        if r.is_file() and not r.name.startswith("."):
-                            add(r, False)
-                elif q.is_file():
-                    add(q, False)
+                raise InputFileError(f"'{_printable(text)}' matches no file")
+            for q in hits:
+                add(q, root, False)
         else:
-            raise InputFileError(f"cannot open '{text}': no such file or folder")
+            raise InputFileError(f"cannot open '{_printable(text)}': no such file or folder")
     # A folder next to an explicit file may hold its sidecar.
-    seen = {q.resolve() for q in jsons}
-    neighbours: set[Path] = set()
-    for folder in sorted({q.parent for q in audio}):
-        for j in sorted(folder.glob("*.json")):
-            if j.resolve() not in seen:
-                seen.add(j.resolve())
-                neighbours.add(j.resolve())
-                jsons.append(j)
-    return _unique(audio), _unique(jsons), neighbours
+    for folder in sorted({q.parent for q in found.audio}):
+        try:
+            names = sorted(e.name for e in os.scandir(folder) if e.name.lower().endswith(".json"))
+        except OSError:
+            continue
+        for n in names:
+            j = folder / n
+            if n.startswith(".") or j.resolve() in seen_json or j.absolute() in seen_json:
+                continue
+            why = _refusal(j, folder)
+            if why is not None:
+                seen_json.add(j.absolute())
+                found.refused.append((j, why))
+                continue
+            seen_json.add(j.resolve())
+            found.neighbours.add(j.resolve())
+            found.jsons.append((j, folder))
+    found.audio = _unique(found.audio)
+    return found
 
 
 def _unique(paths: list[Path]) -> list[Path]:
@@ -211,62 +325,155 @@ def _unique(paths: list[Path]) -> list[Path]:
     return out
 
 
-def _sidecar_session(path: Path, obj: dict) -> Session:
-    """The session a sidecar describes (``problem`` set when it cannot be ranged)."""
-    name = str(path.with_suffix(""))
+def _confined(sidecar: Path, name: Any, root: Path) -> str | None:
+    """Why the ``files`` entry ``name`` of ``sidecar`` is refused (None: it is inside the
+    folder ``root`` the batch was given). Says nothing about files outside ``root``."""
+    if not isinstance(name, str) or not name or "\x00" in name:
+        return "'files' must be a list of file names"
+    if os.path.isabs(name):
+        return f"file {_printable(name)!r} is an absolute path (names are relative to the sidecar)"
+    if not _inside((sidecar.parent / name).resolve(), root):
+        return f"file {_printable(name)!r} is outside the folder '{_printable(str(root))}'"
+    return None
+
+
+def _sidecar_session(path: Path, obj: dict, root: Path | None = None) -> Session:
+    """The session a sidecar describes (``problem`` set when it cannot be ranged).
+
+    Its ``files`` must resolve (links followed) inside ``root``, the folder the batch
+    was given (default: the sidecar's own folder)."""
+    root = path.parent if root is None else root
+    name = _printable(str(path.with_suffix("")))
+    shown = _printable(str(path))
     files = obj["files"]
-    if not isinstance(files, list) or not files or not all(isinstance(f, str) for f in files):
-        return Session(name, (str(path),), problem=f"'{path}': 'files' must be a list of names")
+    if not isinstance(files, list) or not files or len(files) > MAX_SIDECAR_FILES:
+        return Session(
+            name,
+            (str(path),),
+            problem=f"'{shown}': 'files' must be a list of 1 to {MAX_SIDECAR_FILES} names",
+        )
+    for f in files:
+        why = _confined(path, f, root)
+        if why is not None:
+            return Session(name, (str(path),), problem=f"'{shown}': {why}")
     paths = tuple(str(path.parent / f) for f in files)
     scheme = obj.get("scheme")
     if scheme is not None and scheme not in SCHEMES:
         return Session(
-            name, paths, problem=f"'{path}': scheme {scheme!r} is not one of {', '.join(SCHEMES)}"
+            name,
+            paths,
+            problem=f"'{shown}': scheme {scheme!r} is not one of {', '.join(SCHEMES)}",
         )
-    params, truth = _sidecar_values(obj, scheme)
+    try:
+        params, truth = _sidecar_values(obj, scheme)
+    except InvalidParameterError as e:
+        return Session(name, paths, problem=f"'{shown}': {e}")
     return Session(name, paths, scheme=scheme, params=params, truth=truth)
+
+
+def _number(where: str, v: Any, lo: float, hi: float) -> float:
+    """A JSON number within [lo, hi] (booleans are not numbers), else InvalidParameterError."""
+    import math
+
+    if isinstance(v, bool) or not isinstance(v, (int, float)):
+        raise InvalidParameterError(f"{where}={v!r} must be a number")
+    f = float(v)
+    if not (math.isfinite(f) and lo <= f <= hi):
+        raise InvalidParameterError(f"{where}={v!r} must be within [{lo:g}, {hi:g}]")
+    return f
+
+
+def _index(where: str, v: Any) -> int:
+    """A JSON integer >= 0 (``2.0`` accepted, ``true`` not), else InvalidParameterError."""
+    if isinstance(v, float) and v.is_integer():
+        v = int(v)
+    if isinstance(v, bool) or not isinstance(v, int) or not 0 <= v <= 10**6:
+        raise InvalidParameterError(f"{where}={v!r} must be an integer in [0, 1000000]")
+    return v
+
+
+#: Sidecar ``beep`` keys and their type (int or float); others are refused.
+_BEEP_KEYS = {
+    "f_hz": float,
+    "n_bursts": int,
+    "spacing": int,
+    "burst_len": int,
+    "taper": int,
+    "amplitude": float,
+    "fs": float,
+}
+#: Largest true distance accepted in a sidecar, m.
+_MAX_TRUE_M = 1e5
 
 
 def _sidecar_values(
     obj: dict, scheme: str | None
 ) -> tuple[dict[str, Any], tuple[tuple[int, int, float], ...]]:
     """The ranging parameters and true distances a sidecar gives (rule 1 of the module
-    docstring), for a session of ``scheme``; keys of the wrong type are ignored."""
+    docstring), for a session of ``scheme``. Every value is type- and range-checked
+    (``InvalidParameterError`` naming the key): a wrong value is never replaced by a
+    default silently."""
     params: dict[str, Any] = {}
-    if isinstance(obj.get("beep"), dict):
-        params["beep"] = dict(obj["beep"])
-    if isinstance(obj.get("temp_c"), (int, float)):
-        params["temp_c"] = float(obj["temp_c"])
+    beep = obj.get("beep")
+    if beep is not None:
+        if not isinstance(beep, dict):
+            raise InvalidParameterError("'beep' must be an object")
+        b: dict[str, Any] = {}
+        for k, v in beep.items():
+            if k not in _BEEP_KEYS:
+                continue  # written by the simulator (e.g. durations), not a parameter
+            if _BEEP_KEYS[k] is int:
+                b[k] = _index(f"beep.{k}", v)
+            else:
+                b[k] = _number(f"beep.{k}", v, 0.0, 1e7)
+        params["beep"] = b
+    if obj.get("temp_c") is not None:
+        params["temp_c"] = _number("temp_c", obj["temp_c"], -60.0, 60.0)
     sd = obj.get("self_distance_m")
     devices = obj.get("devices")
-    if isinstance(sd, (int, float)) or (
-        isinstance(sd, list) and all(isinstance(v, (int, float)) for v in sd)
-    ):
-        params["self_distance_m"] = sd
-    elif isinstance(devices, list) and all(
-        isinstance(d, dict) and isinstance(d.get("self_distance_m"), (int, float)) for d in devices
-    ):
-        params["self_distance_m"] = [float(d["self_distance_m"]) for d in devices]
-    for key in ("period_s", "latency_s"):
-        if scheme in ("oneway", "echo") and isinstance(obj.get(key), (int, float)):
-            params[key] = float(obj[key])
-    truth = []
-    for w in obj.get("windows") or ():
-        if not isinstance(w, dict) or not isinstance(w.get("window"), int):
-            continue
-        if scheme == "oneway" and isinstance(w.get("distances_m"), list):
-            truth += [
-                (w["window"], c, float(d))
-                for c, d in enumerate(w["distances_m"])
-                if isinstance(d, (int, float))
+    if isinstance(sd, list):
+        if not 1 <= len(sd) <= MAX_SIDECAR_FILES:
+            raise InvalidParameterError("'self_distance_m' must hold 1 to 256 numbers")
+        params["self_distance_m"] = [
+            _number(f"self_distance_m[{i}]", v, 0.0, 2.0) for i, v in enumerate(sd)
+        ]
+    elif sd is not None:
+        params["self_distance_m"] = _number("self_distance_m", sd, 0.0, 2.0)
+    elif isinstance(devices, list) and devices:
+        if all(isinstance(d, dict) and "self_distance_m" in d for d in devices):
+            params["self_distance_m"] = [
+                _number(f"devices[{i}].self_distance_m", d["self_distance_m"], 0.0, 2.0)
+                for i, d in enumerate(devices)
             ]
-        elif scheme == "echo" and isinstance(w.get("distance_m"), (int, float)):
-            truth.append((w["window"], 0, float(w["distance_m"])))
-    for p in obj.get("pairs") or ():
-        if isinstance(p, dict) and all(isinstance(p.get(k), (int, float)) for k in "ab"):
-            d = p.get("distance_m")
-            if isinstance(d, (int, float)):
-                truth.append((int(p["a"]), int(p["b"]), float(d)))
+    if scheme in ("oneway", "echo"):
+        if obj.get("period_s") is not None:
+            params["period_s"] = _number("period_s", obj["period_s"], 1e-4, 3600.0)
+        if obj.get("latency_s") is not None:
+            params["latency_s"] = _number("latency_s", obj["latency_s"], 0.0, 10.0)
+    truth = []
+    windows = obj.get("windows") or []
+    pairs = obj.get("pairs") or []
+    if not isinstance(windows, list) or not isinstance(pairs, list):
+        raise InvalidParameterError("'windows' and 'pairs' must be lists")
+    for k, w in enumerate(windows):
+        if not isinstance(w, dict) or "window" not in w:
+            raise InvalidParameterError(f"windows[{k}] must be an object with a 'window'")
+        win = _index(f"windows[{k}].window", w["window"])
+        if scheme == "oneway" and isinstance(w.get("distances_m"), list):
+            for c, d in enumerate(w["distances_m"]):
+                if d is not None:
+                    where = f"windows[{k}].distances_m[{c}]"
+                    truth.append((win, c, _number(where, d, 0.0, _MAX_TRUE_M)))
+        elif scheme == "echo" and w.get("distance_m") is not None:
+            d = _number(f"windows[{k}].distance_m", w["distance_m"], 0.0, _MAX_TRUE_M)
+            truth.append((win, 0, d))
+    for k, p in enumerate(pairs):
+        if not isinstance(p, dict) or "a" not in p or "b" not in p:
+            raise InvalidParameterError(f"pairs[{k}] must be an object with 'a' and 'b'")
+        a, b_ = _index(f"pairs[{k}].a", p["a"]), _index(f"pairs[{k}].b", p["b"])
+        if p.get("distance_m") is not None:
+            d = _number(f"pairs[{k}].distance_m", p["distance_m"], 0.0, _MAX_TRUE_M)
+            truth.append((a, b_, d))
     return params, tuple(truth)
 
 
@@ -281,22 +488,41 @@ def find_sessions(inputs: Sequence[str | os.PathLike]) -> list[Session]:
     InputFileError
         If an input does not exist (or a glob matches nothing), or no recording is found.
     """
-    audio, jsons, neighbours = _expand(inputs)
+    from rangekit.io.guard import read_json_file
+
+    found = _expand(inputs)
+    audio = found.audio
     given = {p.resolve() for p in audio}
     sessions: list[Session] = []
     claimed: set[Path] = set()
-    for j in jsons:
+    for j, root in found.jsons:
         try:
-            obj = json.loads(j.read_text(encoding="utf-8"))
-        except (OSError, UnicodeDecodeError, json.JSONDecodeError):
-            continue  # not a sidecar (e.g. a floor plan that is not ours to judge)
-        if not isinstance(obj, dict) or "files" not in obj:
+            obj = read_json_file(j)
+        except RangekitError as e:
+            # Not silently ignored: it may be the sidecar of recordings beside it, which
+            # would then be ranged with the wrong values. Those named after it (j's stem,
+            # or stem_devN) are claimed by its error row.
+            mine = {
+                q.resolve()
+                for q in audio
+                if q.parent == j.parent
+                and (q.stem == j.stem or re.fullmatch(re.escape(j.stem) + r"_dev\d+", q.stem))
+            }
+            if j.resolve() in found.neighbours and not mine:
+                continue  # beside an input file, and not about it
+            name = _printable(str(j.with_suffix("")))
+            sessions.append(Session(name, (str(j),), problem=f"sidecar: {_printable(str(e))}"))
+            claimed |= mine
             continue
-        s = _sidecar_session(j, obj)
-        if j.resolve() in neighbours and not given & {Path(f).resolve() for f in s.files}:
+        if not isinstance(obj, dict) or "files" not in obj:
+            continue  # not a sidecar (e.g. a floor plan)
+        s = _sidecar_session(j, obj, root)
+        if j.resolve() in found.neighbours and not given & {Path(f).resolve() for f in s.files}:
             continue  # a sidecar next to an input, of recordings that were not asked for
         sessions.append(s)
         claimed.update(Path(f).resolve() for f in s.files)
+    for p, why in found.refused:
+        sessions.append(Session(_printable(str(p)), (str(p),), problem=_printable(why)))
     rest = [p for p in audio if p.resolve() not in claimed]
     groups: dict[tuple[Path, str], dict[int, Path]] = {}
     singles: list[Path] = []
@@ -310,16 +536,16 @@ def find_sessions(inputs: Sequence[str | os.PathLike]) -> list[Session]:
         idx = sorted(devs)
         if len(idx) >= 2 and idx == list(range(len(idx))):
             files = tuple(str(devs[i]) for i in idx)
-            sessions.append(Session(str(folder / name), files))
+            sessions.append(Session(_printable(str(folder / name)), files))
         else:
             singles.extend(devs.values())
-    sessions.extend(Session(str(p), (str(p),)) for p in singles)
+    sessions.extend(Session(_printable(str(p)), (str(p),)) for p in singles)
     if not sessions:
         shown = ", ".join(os.fspath(i) for i in inputs[:3])
         raise InputFileError(f"no recordings found in {shown}{' ...' if len(inputs) > 3 else ''}")
     sessions.sort(key=lambda s: s.name)
     names = [s.name for s in sessions]
-    dup = {n for n in names if names.count(n) > 1}
+    dup = {n for n, k in Counter(names).items() if k > 1}
     if dup:
         raise InputFileError(f"two sessions share the name {sorted(dup)[0]!r}")
     return sessions
@@ -397,13 +623,11 @@ def pair_sessions_by_name(folders: Sequence[str | os.PathLike]) -> list[Session]
     keyed: list[dict[str, Path]] = []
     for root in roots:
         found: dict[str, Path] = {}
-        for q in sorted(root.rglob("*")):
+        for q in _walk(root):
             rel = q.relative_to(root)
-            if any(part.startswith(".") for part in rel.parts):
+            if q.suffix.lower() not in AUDIO_SUFFIXES or _refusal(q, root) is not None:
                 continue
-            if q.suffix.lower() not in AUDIO_SUFFIXES or not q.is_file():
-                continue
-            key = rel.with_suffix("").as_posix()
+            key = _printable(rel.with_suffix("").as_posix())
             if key in found:
                 raise InputFileError(
                     f"'{found[key]}' and '{q}' have the same name {key!r} (pairing by name "
@@ -430,13 +654,14 @@ def pair_sessions_by_name(folders: Sequence[str | os.PathLike]) -> list[Session]
 
 def _paired_session(key: str, files: tuple[str, ...], sidecar: Path) -> Session:
     """Session ``key`` of paired ``files``, with the values of ``sidecar`` if it exists."""
-    if not sidecar.is_file():
+    from rangekit.io.guard import read_json_file
+
+    if not os.path.lexists(sidecar):
         return Session(key, files, scheme="beepbeep")
     try:
-        obj = json.loads(sidecar.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as e:
-        problem = f"cannot read the sidecar '{sidecar}': {e}"
-        return Session(key, files, scheme="beepbeep", problem=problem)
+        obj = read_json_file(sidecar, what="the sidecar ")
+    except RangekitError as e:
+        return Session(key, files, scheme="beepbeep", problem=_printable(str(e)))
     if not isinstance(obj, dict):
         problem = f"the sidecar '{sidecar}' is not a JSON object"
         return Session(key, files, scheme="beepbeep", problem=problem)
@@ -447,7 +672,11 @@ def _paired_session(key: str, files: tuple[str, ...], sidecar: Path) -> Session:
             "name hold BeepBeep sessions"
         )
         return Session(key, files, scheme="beepbeep", problem=problem)
-    params, truth = _sidecar_values(obj, "beepbeep")
+    try:
+        params, truth = _sidecar_values(obj, "beepbeep")
+    except InvalidParameterError as e:
+        problem = f"the sidecar '{_printable(str(sidecar))}': {e}"
+        return Session(key, files, scheme="beepbeep", problem=problem)
     return Session(key, files, scheme="beepbeep", params=params, truth=truth)
 
 
@@ -506,6 +735,9 @@ def _ultrasonic_rows(session: Session, scheme: str, opts: BatchOptions) -> list[
         kw["period_s"] = p["period_s"]
     if "latency_s" in p and scheme == "oneway":
         kw["latency_s"] = p["latency_s"]
+    from rangekit.io.audio import check_period
+
+    check_period(session.files, kw.get("period_s"))
     truth = {(w, c): d for w, c, d in session.truth}
     rows = []
     for r in range_ultrasonic_files(list(session.files), scheme=scheme, **kw):
@@ -567,7 +799,7 @@ def _cell(v: Any) -> str:
         return ""
     if isinstance(v, float):
         return repr(v) if v == v else ""
-    return str(v)
+    return _printable(str(v))
 
 
 def _csv_line(row: dict[str, Any]) -> str:
@@ -584,6 +816,7 @@ def _json_line(row: dict[str, Any]) -> str:
         c: (None if isinstance(row[c], float) and row[c] != row[c] else row[c])
         for c in BATCH_COLUMNS
     }
+    clean = {c: (_printable(v) if isinstance(v, str) else v) for c, v in clean.items()}
     return json.dumps(clean, allow_nan=False) + "\n"
 
 
@@ -630,10 +863,9 @@ class ResultsFile:
         self.head = self._head(options)
         self.done: dict[str, list[str]] = {}  # session -> its lines, in file order
         self.status: dict[str, str] = {}  # session -> "ok" or "error"
-        if not self.path.parent.is_dir():
-            raise InputFileError(
-                f"cannot write '{self.path}': folder '{self.path.parent}' does not exist"
-            )
+        from rangekit.io.guard import check_output
+
+        check_output(self.path)  # no link, device or directory; the folder exists
         if self.path.exists():
             if not resume:
                 raise InvalidParameterError(
@@ -644,7 +876,8 @@ class ResultsFile:
         else:
             self._write_new(self.head)
         try:
-            self._fd = os.open(self.path, os.O_WRONLY | os.O_APPEND)
+            nofollow = getattr(os, "O_NOFOLLOW", 0)
+            self._fd = os.open(self.path, os.O_WRONLY | os.O_APPEND | nofollow)
         except OSError as e:
             raise InputFileError(f"cannot write '{self.path}': {e.strerror or e}") from e
 
@@ -679,6 +912,8 @@ class ResultsFile:
             data = self.path.read_bytes()
         except OSError as e:
             raise InputFileError(f"cannot read '{self.path}': {e.strerror or e}") from e
+        import csv
+
         text = data.decode("utf-8", errors="replace")
         if not text.startswith(self.head):
             first = text.splitlines()[0] if text else ""
@@ -695,10 +930,10 @@ class ResultsFile:
         for raw in data[pos:].splitlines(keepends=True):
             if not raw.endswith(b"\n"):
                 break  # torn last line
-            line = raw.decode("utf-8")
             try:
+                line = raw.decode("utf-8")
                 name, n, status = self._parse(line)
-            except (ValueError, KeyError, TypeError, StopIteration):
+            except (ValueError, KeyError, TypeError, StopIteration, csv.Error):
                 break
             if name != pending_name:
                 pending, pending_name, pending_n = [], name, n
@@ -722,7 +957,10 @@ class ResultsFile:
         blob = "".join(lines).encode("utf-8")
         view = memoryview(blob)
         while view:
-            n = os.write(self._fd, view)
+            try:
+                n = os.write(self._fd, view)
+            except OSError as e:  # a full disk: what is written so far stays resumable
+                raise InputFileError(f"cannot write '{self.path}': {e.strerror or e}") from e
             view = view[n:]
         name = str(rows[0]["session"])
         self.done[name] = lines
@@ -829,6 +1067,8 @@ def run_batch(
     jobs = int(jobs)
     if jobs < 1:
         raise InvalidParameterError(f"jobs={jobs} must be >= 1")
+    if scheduler is not None:
+        check_scheduler_address(scheduler)
     results = ResultsFile(output, options, resume=resume)
     order = [s.name for s in sessions]
     todo = [s for s in sessions if s.name not in results.done]
@@ -878,31 +1118,118 @@ def _run_pool(jobs: int, chunks: list[list[Session]], options, record) -> None:
             for rows in f.result():
                 record(rows)
     except BaseException:
+        procs = list((getattr(ex, "_processes", None) or {}).values())
         ex.shutdown(wait=False, cancel_futures=True)
-        for p in list(getattr(ex, "_processes", {}).values()):
+        # shutdown() sets _processes to None: take the workers before it
+        for p in procs:
             p.terminate()
         raise
     ex.shutdown(wait=True)
 
 
+_ADDRESS_RE = re.compile(
+    r"^(?:(?P<proto>tcp|tls)://)?(?P<host>\[[0-9a-fA-F:]+\]|[^\s:/\[\]]+):(?P<port>\d{1,5})$"
+)
+
+
+def check_scheduler_address(address: str) -> re.Match:
+    """The parts of a ``[tcp://|tls://]HOST:PORT`` address, else InvalidParameterError."""
+    m = _ADDRESS_RE.match(str(address).strip())
+    if m is None or not 0 < int(m["port"]) < 65536:
+        raise InvalidParameterError(
+            f"--scheduler {address!r} is not an address of the form tcp://HOST:PORT"
+        )
+    return m
+
+
+def _dask_client(Client, address: str):
+    """A connected Dask client, or an error within about DASK_CONNECT_TIMEOUT_S.
+
+    The address must be ``[tcp://|tls://]HOST:PORT`` (else InvalidParameterError). The
+    TCP connection and then the Dask handshake each get the timeout: a server that
+    accepts and never answers, or is not a Dask scheduler, is an InputFileError naming
+    the address, not a hang."""
+    import socket
+    import threading
+
+    m = check_scheduler_address(address)
+    t = DASK_CONNECT_TIMEOUT_S
+    where = f"the Dask scheduler at {address}"
+    try:
+        socket.create_connection((m["host"].strip("[]"), int(m["port"])), timeout=t).close()
+    except OSError as e:
+        raise InputFileError(f"cannot connect to {where}: {e.strerror or e}") from None
+    box: dict[str, Any] = {}
+
+    def connect() -> None:
+        try:
+            box["client"] = Client(address.strip(), timeout=f"{t}s")
+        except BaseException as e:  # reported in the caller's thread
+            box["error"] = e
+
+    th = threading.Thread(target=connect, daemon=True, name="rangekit-dask-connect")
+    th.start()
+    th.join(t + 5.0)
+    if th.is_alive():
+        raise InputFileError(
+            f"cannot connect to {where}: no Dask handshake within {t:g} s (is it a Dask scheduler?)"
+        )
+    if "error" in box:
+        e = box["error"]
+        raise InputFileError(f"cannot connect to {where}: {type(e).__name__}: {e}") from None
+    return box["client"]
+
+
 def _run_dask(address: str, chunks: list[list[Session]], options, record) -> None:
     try:
-        from distributed import Client, as_completed
+        from distributed import Client
     except ImportError:
         raise InvalidParameterError(
             "--scheduler needs Dask: pip install 'rangekit[dask]' (dask[distributed])"
         ) from None
-    try:
-        client = Client(address, timeout=f"{DASK_CONNECT_TIMEOUT_S}s")
-    except (OSError, TimeoutError) as e:
-        raise InputFileError(f"cannot connect to the Dask scheduler at {address}: {e}") from e
+    from distributed import wait
+
+    client = _dask_client(Client, address)
     try:
         futs = [client.submit(_run_chunk, c, options, pure=False) for c in chunks]
-        for f in as_completed(futs):
-            for rows in f.result():
-                record(rows)
+        _dask_watch(client, futs, record, address=address, wait=wait)
     finally:
         client.close()
+
+
+def _dask_watch(client, futs, record, *, address: str, wait) -> None:
+    """Record the chunks' rows as their tasks finish, watching the cluster.
+
+    Every :data:`DASK_WATCHDOG_S` without a finished task the scheduler is asked for its
+    workers: none left (they died), or no answer, stops the batch with an InputFileError
+    (exit 3) instead of waiting forever; so does a task that failed on the cluster (a
+    worker killed while running it, ``KilledWorker``). Every session finished before is
+    in the results file (rerun with ``--resume``)."""
+    pending = set(futs)
+    where = f"the Dask cluster at {address}"
+    again = "every finished session is in the results file; rerun with --resume"
+    while pending:
+        try:
+            done, pending = wait(pending, timeout=DASK_WATCHDOG_S, return_when="FIRST_COMPLETED")
+        except TimeoutError:
+            try:
+                workers = client.scheduler_info().get("workers", {})
+            except Exception as e:
+                raise InputFileError(f"lost {where} ({type(e).__name__}: {e}); {again}") from None
+            if not workers:
+                raise InputFileError(
+                    f"{where} has no worker left: {len(pending)} task(s) cannot run; {again}"
+                ) from None
+            continue
+        for f in done:
+            try:
+                chunk = f.result()
+            except Exception as e:  # KilledWorker, a worker's own failure
+                raise InputFileError(
+                    f"a task failed on {where} ({type(e).__name__}: {e}); {again}"
+                ) from None
+            for rows in chunk:
+                record(rows)
 
 
 def iter_rows(path: str | os.PathLike) -> Iterable[dict[str, Any]]:

@@ -44,7 +44,12 @@ def speed_of_sound_m_s(temp_c: float = DEFAULT_TEMP_C) -> float:
     -----
     c = 20.05 * sqrt(T + 273.16), with T in degrees Celsius (Kim & Kim 2013, §II-A).
     """
-    temp_c = float(temp_c)
+    if isinstance(temp_c, (bool, str)):
+        raise InvalidParameterError(f"temperature {temp_c!r} must be a number")
+    try:
+        temp_c = float(temp_c)
+    except (TypeError, ValueError, OverflowError):
+        raise InvalidParameterError(f"temperature {temp_c!r} must be a number") from None
     if not math.isfinite(temp_c) or not -60.0 <= temp_c <= 60.0:
         raise InvalidParameterError(f"temperature {temp_c} C is outside [-60, 60] C")
     return 20.05 * math.sqrt(temp_c + 273.16)

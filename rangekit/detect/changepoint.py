@@ -809,6 +809,12 @@ def detect_changepoint(
     fs = V.sample_rate(fs)
     x = _signal(x)
     check_beep_fits(beep, fs=fs)
+    win_s = V.in_range("win_s", win_s, 1e-5, 1.0)
+    hop_s = V.in_range("hop_s", hop_s, 1e-7, 1.0)
+    threshold_db = V.in_range("threshold_db", threshold_db, -100.0, 200.0)
+    rise_db = V.in_range("rise_db", rise_db, -100.0, 200.0)
+    if expected is not None:
+        expected = V.positive_int("expected", expected)
     k_b = beep.n_bursts
     if min_bursts is None:
         min_bursts = 1 if k_b == 1 else max(2, k_b - 1)
@@ -875,7 +881,7 @@ def detect_changepoint(
         flags=np.array([r[5] for r in rows], dtype=np.int64),
     )
     arr = drop_echoes(arr, duration=beep.duration_s * fs)
-    if expected is not None and len(arr) > V.positive_int("expected", expected):
+    if expected is not None and len(arr) > expected:
         weak = flag_bit("inconsistent_bursts") | flag_bit("low_snr")
         doubtful = np.flatnonzero(arr.flags & weak)
         # weakest first: fewest agreeing bursts, then lowest SNR
@@ -1045,7 +1051,7 @@ def _signal(x) -> np.ndarray:
     ``rangekit._validate.signal_1d``)."""
     a = np.asarray(x)
     if a.dtype not in (np.float32, np.float64):
-        return V.signal_1d("x", a)
+        return V.signal_1d("x", a, max_abs=V.MAX_SAMPLE_ABS)
     if a.ndim != 1:
         raise V.InvalidParameterError(f"x must be 1-D, got shape {a.shape}")
     a = np.ascontiguousarray(a)
@@ -1056,6 +1062,10 @@ def _signal(x) -> np.ndarray:
         a = a.astype(np.float64, copy=False)  # short: the numpy path, in float64
     if not finite:
         raise V.InvalidParameterError("x contains NaN or infinite values")
+    if a.size and max(abs(float(a.max())), abs(float(a.min()))) > V.MAX_SAMPLE_ABS:
+        raise V.InvalidParameterError(
+            f"x holds values beyond +-{V.MAX_SAMPLE_ABS:g} (their energy overflows)"
+        )
     return a
 
 

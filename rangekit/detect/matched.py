@@ -254,7 +254,7 @@ class MatchedFilter:
 
     def correlate(self, x: np.ndarray) -> np.ndarray:
         """Analytic correlation of the whole of ``x`` (complex, same length as ``x``)."""
-        x = V.signal_1d("x", x)
+        x = V.signal_1d("x", x, max_abs=V.MAX_SAMPLE_ABS)
         xp = np.concatenate([np.zeros(self.pre), x, np.zeros(self.n_taps)])
         return self._segments(xp, len(x))
 
@@ -267,7 +267,7 @@ class MatchedFilter:
         and correlated by the same overlap-save blocks; outputs that would straddle two
         pieces are never read.
         """
-        x = V.signal_1d("x", x)
+        x = V.signal_1d("x", x, max_abs=V.MAX_SAMPLE_ABS)
         sp = np.asarray(spans, dtype=np.int64).reshape(-1, 2)
         if len(sp) == 0:
             return []
@@ -299,7 +299,7 @@ class MatchedFilter:
         seen = 0  # input samples seen so far
         look = self.n_taps - self.pre
         for chunk in chunks:
-            c = V.signal_1d("chunk", chunk)
+            c = V.signal_1d("chunk", chunk, max_abs=V.MAX_SAMPLE_ABS)
             buf = np.concatenate([buf, c])
             seen += len(c)
             ready = seen - look - done
@@ -975,7 +975,7 @@ def detect_matched(
         model's resolution after the first one).
     """
     fs = V.sample_rate(fs)
-    x = V.signal_1d("x", x)
+    x = V.signal_1d("x", x, max_abs=V.MAX_SAMPLE_ABS)
     mf = matched_filter(template, block=block)
     beta = rms_bandwidth_hz(mf.template, fs=fs)
     if windows is None:

@@ -79,8 +79,12 @@ def detect_xcorr(
 
     beep = Beep() if beep is None else beep
     fs = V.sample_rate(fs)
-    x = V.signal_1d("x", x)
+    x = V.signal_1d("x", x, max_abs=V.MAX_SAMPLE_ABS)
     check_beep_fits(beep, fs=fs)
+    threshold_db = V.in_range("threshold_db", threshold_db, -100.0, 200.0)
+    min_confidence = V.in_range("min_confidence", min_confidence, 0.0, 1.0)
+    if max_beeps is not None:
+        max_beeps = V.positive_int("max_beeps", max_beeps)
     k_b = beep.n_bursts
     n_tmpl = int(math.ceil(beep.duration_s * fs))
     one = beep_continuous_analytic(np.arange(int(math.ceil(beep.burst_s * fs))) / fs, beep=beep)
@@ -103,7 +107,7 @@ def detect_xcorr(
     peaks = []
     while True:
         i = int(np.argmax(work))
-        if work[i] <= thr or (max_beeps is not None and len(peaks) >= max_beeps):
+        if work[i] <= max(thr, 0.0) or (max_beeps is not None and len(peaks) >= max_beeps):
             break
         peaks.append(i)
         work[max(0, i - excl) : i + excl + 1] = 0.0

@@ -19,8 +19,8 @@ import numpy as np
 from rangekit.errors import (
     AudioFormatError,
     IncompatibleInputError,
-    InputFileError,
     InvalidParameterError,
+    RangekitError,
 )
 
 __all__ = ["Channel", "load_devices", "open_audio", "read_audio", "read_frames", "write_audio"]
@@ -39,6 +39,84 @@ class Channel:
         return len(self.x) / self.fs
 
 
+#: Largest sample magnitude accepted in a recording. Integer formats are within [-1, 1];
+#: a float file can hold anything, and a sample of 1e300 is not sound (its energy
+#: overflows): such a file is refused (exit 4) instead of poisoning the detection.
+MAX_SAMPLE_ABS = 1e3
+#: Peak memory of a whole-file command per byte of float64 samples (measured: about 8x
+#: the samples -- the STFT, the conditioned copy, the matched filter).
+PEAK_FACTOR = 8
+#: Environment variable with the memory budget of whole-file reads (``--memory-budget``).
+BUDGET_ENV = "RANGEKIT_MEMORY_BUDGET"
+#: Fraction of the available memory that is the default budget.
+BUDGET_FRACTION = 0.5
+
+
+def parse_size(text: str) -> int | None:
+    """Bytes of ``"512M"``, ``"4G"``, ``"1.5G"``, ``"1000000"`` (K, M, G, T: powers of
+    1024); None for ``"off"`` (no budget). InvalidParameterError otherwise."""
+    import re
+
+    from rangekit.errors import InvalidParameterError
+
+    t = str(text).strip().lower()
+    if t in ("off", "none", "0"):
+        return None
+    m = re.fullmatch(r"(\d+(?:\.\d+)?)\s*([kmgt]?)i?b?", t)
+    if m is None:
+        raise InvalidParameterError(
+            f"memory budget {text!r} must be a size such as 512M, 4G or off"
+        )
+    v = float(m[1]) * 1024 ** " kmgt".index(m[2] or " ")
+    if not 1 <= v <= 2**60:
+        raise InvalidParameterError(f"memory budget {text!r} is out of range")
+    return int(v)
+
+
+def memory_budget() -> int | None:
+    """Bytes a whole-file read may plan to use (None: no limit).
+
+    ``$RANGEKIT_MEMORY_BUDGET`` (``rangekit --memory-budget``) if set, else
+    :data:`BUDGET_FRACTION` of the available memory (``MemAvailable`` of /proc/meminfo;
+    4 GiB where that is unknown)."""
+    env = os.environ.get(BUDGET_ENV)
+    if env:
+        return parse_size(env)
+    try:
+        with open("/proc/meminfo", encoding="ascii") as f:
+            for line in f:
+                if line.startswith("MemAvailable:"):
+                    return int(BUDGET_FRACTION * int(line.split()[1]) * 1024)
+    except (OSError, ValueError, IndexError):
+        pass
+    return 4 * 2**30
+
+
+def _size(n: int) -> str:
+    return f"{n / 2**30:.2f} GiB" if n >= 2**30 else f"{n / 2**20:.1f} MiB"
+
+
+def check_memory(
+    path: str | os.PathLike, frames: int, channels: int, *, hint: str | None = None
+) -> None:
+    """Refuse a whole-file read whose estimated peak exceeds :func:`memory_budget`.
+
+    Raises
+    ------
+    IncompatibleInputError
+        Naming the file, the estimate, the budget, and ``--series`` (exit 5).
+    """
+    budget = memory_budget()
+    need = int(frames) * int(channels) * 8 * PEAK_FACTOR
+    if budget is not None and need > budget:
+        raise IncompatibleInputError(
+            f"'{os.fspath(path)}': {frames} frames x {channels} channel(s) need about "
+            f"{_size(need)} to process whole, more than the memory budget of "
+            f"{_size(budget)}: {hint or 'use `rangekit range --series` (bounded memory)'}, "
+            f"or raise the budget (rangekit --memory-budget SIZE, or ${BUDGET_ENV})"
+        )
+
+
 def _sf():
     import soundfile  # deferred: keeps `import rangekit` cheap
 
@@ -46,15 +124,15 @@ def _sf():
 
 
 def _readable(path: str | os.PathLike) -> Path:
-    """``path`` as a Path if it is a readable file, else InputFileError naming it."""
-    p = Path(path)
-    if not p.exists():
-        raise InputFileError(f"cannot open '{p}': no such file")
-    if p.is_dir():
-        raise InputFileError(f"cannot open '{p}': it is a directory")
-    if not os.access(p, os.R_OK):
-        raise InputFileError(f"cannot open '{p}': permission denied")
-    return p
+    """``path`` as a Path if it is a readable regular file, else InputFileError naming it.
+
+    Directories, FIFOs, devices (``/dev/zero``) and sockets are refused before they are
+    opened (:func:`rangekit.io.guard.regular_file`): nothing blocks or reads forever.
+    """
+    from rangekit.io.guard import regular_file
+
+    regular_file(path)
+    return Path(path)
 
 
 #: Subtypes whose samples float32 holds exactly (integers of up to 24 bits, 32-bit floats).
@@ -81,9 +159,14 @@ def read_audio(path: str | os.PathLike, *, dtype: str = "auto") -> tuple[np.ndar
     p = _readable(path)
     sf = _sf()
     try:
-        if dtype == "auto":
-            dtype = "float32" if sf.info(str(p)).subtype in _EXACT_IN_FLOAT32 else "float64"
-        x, fs = sf.read(str(p), dtype=dtype, always_2d=True)
+        with sf.SoundFile(str(p)) as f:
+            check_memory(p, f.frames, f.channels)
+            if dtype == "auto":
+                dtype = "float32" if f.subtype in _EXACT_IN_FLOAT32 else "float64"
+            x = f.read(dtype=dtype, always_2d=True)
+            fs = f.samplerate
+    except RangekitError:
+        raise
     except sf.LibsndfileError as e:
         raise AudioFormatError(f"'{p}' is not a readable audio file ({e.error_string})") from e
     except (RuntimeError, TypeError, ValueError) as e:
@@ -92,7 +175,17 @@ def read_audio(path: str | os.PathLike, *, dtype: str = "auto") -> tuple[np.ndar
         raise AudioFormatError(f"'{p}' holds no audio samples")
     if not np.all(np.isfinite(x)):
         raise AudioFormatError(f"'{p}' holds NaN or infinite samples")
+    _check_peak(x, f"'{p}'")
     return x, float(fs)
+
+
+def _check_peak(x: np.ndarray, what: str) -> None:
+    peak = float(np.max(np.abs(x))) if x.size else 0.0
+    if peak > MAX_SAMPLE_ABS:
+        raise AudioFormatError(
+            f"{what} holds a sample of magnitude {peak:.3g}, beyond {MAX_SAMPLE_ABS:g}: not "
+            "a recording (float files are read as they are, full scale is 1)"
+        )
 
 
 def open_audio(path: str | os.PathLike):
@@ -149,7 +242,28 @@ def read_frames(f, start: int, stop: int) -> np.ndarray:
         raise AudioFormatError(f"'{f.name}': cannot read samples {start}-{stop} ({e})") from e
     if not np.all(np.isfinite(x)):
         raise AudioFormatError(f"'{f.name}' holds NaN or infinite samples (from sample {start})")
+    _check_peak(x, f"'{f.name}' (from sample {start})")
     return x
+
+
+def check_period(paths: Sequence[str | os.PathLike], period_s: float | None) -> None:
+    """Refuse recordings shorter than one ``period_s`` window (ultrasonic ``--period``)
+    before they are ranged: IncompatibleInputError naming the file (exit 5). Unreadable
+    files are left to the reader's own error."""
+    if period_s is None:
+        return
+    sf = _sf()
+    for p in paths:
+        try:
+            _readable(p)  # never opens a FIFO or a device
+            info = sf.info(os.fspath(p))
+        except Exception:  # the reader reports it properly
+            continue
+        if info.frames < period_s * info.samplerate:
+            raise IncompatibleInputError(
+                f"'{os.fspath(p)}' lasts {info.frames / info.samplerate:.4g} s, shorter than "
+                f"one window of --period {period_s:g} s"
+            )
 
 
 def load_devices(paths: Sequence[str | os.PathLike], *, min_devices: int = 2) -> list[Channel]:
@@ -209,18 +323,15 @@ def write_audio(
     peak = float(np.max(np.abs(x))) if x.size else 0.0
     if subtype.startswith("PCM") and peak > 1.0:
         raise AudioFormatError(f"cannot write '{path}': peak {peak:.3f} exceeds full scale 1.0")
+    from rangekit.io.guard import atomic_output
+
     p = Path(path)
-    if p.parent and not p.parent.exists():
-        raise InputFileError(f"cannot write '{p}': folder '{p.parent}' does not exist")
-    tmp = p.with_name(f".{p.name}.part")
     sf = _sf()
     fmt = p.suffix.lstrip(".").upper() or "WAV"
     try:
-        sf.write(str(tmp), x, int(round(fs)), subtype=subtype, format=fmt)
-        os.replace(tmp, p)
+        with atomic_output(p) as f:
+            sf.write(f, x, int(round(fs)), subtype=subtype, format=fmt)
     except (sf.LibsndfileError, TypeError, ValueError) as e:
-        tmp.unlink(missing_ok=True)
+        if isinstance(e, RangekitError):
+            raise
         raise AudioFormatError(f"cannot write '{p}': {e}") from e
-    except OSError as e:
-        tmp.unlink(missing_ok=True)
-        raise InputFileError(f"cannot write '{p}': {e.strerror or e}") from e

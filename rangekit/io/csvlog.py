@@ -124,22 +124,31 @@ def read_table(
     if hasattr(source, "read"):
         label = name or getattr(source, "name", "<stream>")
         return _read(source, columns, label, allow_extra)
+    from rangekit.io.guard import MAX_TABLE_BYTES, read_capped
+
     path = Path(source)
     label = name or str(path)
     try:
-        with open(path, newline="", encoding="utf-8") as fh:
-            return _read(fh, columns, label, allow_extra)
-    except FileNotFoundError:
-        raise InputFileError(f"cannot open {label!r}: no such file") from None
-    except IsADirectoryError:
-        raise InputFileError(f"cannot open {label!r}: it is a directory") from None
+        data = read_capped(path, MAX_TABLE_BYTES)
+    except InputFileError as e:
+        raise InputFileError(str(e).replace(f"'{path}'", repr(label), 1)) from None
+    try:
+        text = data.decode("utf-8-sig")
     except UnicodeDecodeError:
         raise LogFormatError(f"{label}: not a UTF-8 text CSV file") from None
-    except PermissionError:
-        raise InputFileError(f"cannot open {label!r}: permission denied") from None
+    return _read(io.StringIO(text, newline=""), columns, label, allow_extra)
 
 
 def _read(fh: IO[str], columns: Mapping[str, Column], name: str, allow_extra: bool):
+    try:
+        return _read_rows(fh, columns, name, allow_extra)
+    except csv.Error as e:  # a cell over the csv module's field limit, a NUL byte
+        raise LogFormatError(f"{name}: not a CSV table ({e})") from None
+
+
+def _read_rows(fh: IO[str], columns: Mapping[str, Column], name: str, allow_extra: bool):
+    from rangekit.io.guard import MAX_CSV_CELL
+
     lines = [(i + 1, ln) for i, ln in enumerate(fh.read().splitlines())]
     lines = [(i, ln) for i, ln in lines if ln.strip() and not ln.lstrip().startswith("#")]
     if not lines:
@@ -166,6 +175,8 @@ def _read(fh: IO[str], columns: Mapping[str, Column], name: str, allow_extra: bo
     values: dict[str, list] = {c: [] for c in columns}
     last_time: dict[str, float] = {}
     for row, line in lines[1:]:
+        if len(line) > MAX_CSV_CELL and max(map(len, line.split(","))) > MAX_CSV_CELL:
+            raise LogFormatError(f"{name} row {row}: a cell longer than {MAX_CSV_CELL} characters")
         cells = next(csv.reader([line]))
         if len(cells) != len(header):
             raise LogFormatError(

@@ -4,12 +4,9 @@ from __future__ import annotations
 
 import json
 import os
-from pathlib import Path
 from typing import Any
 
 import numpy as np
-
-from rangekit.errors import InputFileError
 
 __all__ = ["read_json", "write_json", "write_text_atomic"]
 
@@ -23,17 +20,16 @@ def _default(o: Any):
 
 
 def write_text_atomic(path: str | os.PathLike, text: str) -> None:
-    """Write ``text`` to ``path`` so that it appears complete or not at all."""
-    p = Path(path)
-    if not p.parent.exists():
-        raise InputFileError(f"cannot write '{p}': folder '{p.parent}' does not exist")
-    tmp = p.with_name(f".{p.name}.part")
-    try:
-        tmp.write_text(text, encoding="utf-8")
-        os.replace(tmp, p)
-    except OSError as e:
-        tmp.unlink(missing_ok=True)
-        raise InputFileError(f"cannot write '{p}': {e.strerror or e}") from e
+    """Write ``text`` to ``path`` so that it appears complete or not at all.
+
+    :func:`rangekit.io.guard.atomic_output`: an exclusive temporary file in the same
+    folder, renamed at the end, removed on failure; a link, a directory or a device at
+    ``path`` is refused (InvalidParameterError), an unwritable one is InputFileError.
+    """
+    from rangekit.io.guard import atomic_output
+
+    with atomic_output(path, text=True) as f:
+        f.write(text)
 
 
 def write_json(path: str | os.PathLike, obj: Any) -> None:
@@ -42,11 +38,12 @@ def write_json(path: str | os.PathLike, obj: Any) -> None:
 
 
 def read_json(path: str | os.PathLike) -> Any:
-    """Read a JSON file, raising InputFileError with the path on failure."""
-    p = Path(path)
-    try:
-        return json.loads(p.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise InputFileError(f"cannot open '{p}': no such file") from None
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as e:
-        raise InputFileError(f"cannot read '{p}' as JSON: {e}") from e
+    """Read a JSON input file with rangekit's limits (:func:`rangekit.io.guard.read_json_file`).
+
+    Raises InputFileError naming the path: missing, not a regular file, larger than
+    :data:`~rangekit.io.guard.MAX_JSON_BYTES`, not UTF-8, not JSON, nested too deeply, a
+    number too long or not finite.
+    """
+    from rangekit.io.guard import read_json_file
+
+    return read_json_file(path)

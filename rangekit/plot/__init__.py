@@ -10,7 +10,7 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-from rangekit.errors import InputFileError, InvalidParameterError
+from rangekit.errors import InvalidParameterError
 
 __all__ = ["FORMATS", "check_figure_path", "new_figure", "save_figure"]
 
@@ -41,6 +41,8 @@ def check_figure_path(path: str | os.PathLike) -> Path:
         The suffix is not one of :data:`FORMATS`.
     InputFileError
         The folder does not exist.
+    InvalidParameterError
+        ``path`` is a link, a directory or a device (:func:`rangekit.io.guard.check_output`).
     """
     path = Path(path)
     if path.suffix.lower() not in FORMATS:
@@ -48,9 +50,9 @@ def check_figure_path(path: str | os.PathLike) -> Path:
         raise InvalidParameterError(
             f"plot file {str(path)!r}: unknown format {suffix} (use {', '.join(FORMATS)})"
         )
-    if not path.parent.is_dir():
-        raise InputFileError(f"cannot write {str(path)!r}: folder does not exist")
-    return path
+    from rangekit.io.guard import check_output
+
+    return check_output(path)
 
 
 def save_figure(fig, path: str | os.PathLike) -> Path:
@@ -67,18 +69,12 @@ def save_figure(fig, path: str | os.PathLike) -> Path:
     InputFileError
         The folder does not exist or is not writable.
     """
+    from rangekit.io.guard import atomic_output
+
     try:
         path = check_figure_path(path)
-        tmp = path.with_name(f".{path.name}.part")
-        try:
-            fig.savefig(tmp, format=path.suffix[1:].lower(), dpi=110, bbox_inches="tight")
-            os.replace(tmp, path)
-        except OSError as e:
-            tmp.unlink(missing_ok=True)
-            raise InputFileError(f"cannot write {str(path)!r}: {e.strerror or e}") from None
-        except BaseException:
-            tmp.unlink(missing_ok=True)
-            raise
+        with atomic_output(path) as f:
+            fig.savefig(f, format=path.suffix[1:].lower(), dpi=110, bbox_inches="tight")
     finally:
         _pyplot().close(fig)
     return path

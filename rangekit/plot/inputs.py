@@ -35,7 +35,7 @@ from pathlib import Path
 
 import numpy as np
 
-from rangekit.errors import InputFileError, InvalidParameterError, LogFormatError
+from rangekit.errors import InvalidParameterError, LogFormatError
 from rangekit.io.csvlog import Column, read_table
 
 __all__ = [
@@ -62,27 +62,37 @@ def _label(path: Path) -> str:
 
 def _csv_header(path: Path) -> list[str]:
     """The header cells of a CSV file (first line that is neither blank nor a comment)."""
+    from rangekit.errors import InputFileError
+    from rangekit.io.guard import regular_file
+
     try:
+        regular_file(path)  # never opens a FIFO or a device
         with open(path, newline="", encoding="utf-8") as fh:
             for line in fh:
                 if line.strip() and not line.lstrip().startswith("#"):
                     return [h.strip() for h in next(csv.reader([line]))]
-    except (OSError, UnicodeDecodeError):
+    except (OSError, UnicodeDecodeError, csv.Error, InputFileError):
         return []  # read_table raises the right error
     return []
 
 
+def _msg(e: Exception) -> str:
+    """A JSON error in a few words: the decoder's, or too deep / a too long number."""
+    if isinstance(e, json.JSONDecodeError):
+        return f"line {e.lineno}: {e.msg}"
+    if isinstance(e, RecursionError):
+        return "nested too deeply"
+    return str(e).split(";")[0]
+
+
 def _json_rows(path: Path) -> list[tuple[str, dict]]:
     """``(where, row object)`` of a JSON or JSONL file; ``where`` names the row in messages."""
+    from rangekit.io.guard import MAX_TABLE_BYTES, read_capped
+
     name = _label(path)
+    data = read_capped(path, MAX_TABLE_BYTES)
     try:
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise InputFileError(f"cannot open {name!r}: no such file") from None
-    except IsADirectoryError:
-        raise InputFileError(f"cannot open {name!r}: it is a directory") from None
-    except PermissionError:
-        raise InputFileError(f"cannot open {name!r}: permission denied") from None
+        text = data.decode("utf-8-sig")
     except UnicodeDecodeError:
         raise LogFormatError(f"{name}: not a UTF-8 text file") from None
     rows: list[tuple[str, dict]] = []
@@ -92,16 +102,16 @@ def _json_rows(path: Path) -> list[tuple[str, dict]]:
                 continue
             try:
                 obj = json.loads(line)
-            except json.JSONDecodeError as e:
-                raise LogFormatError(f"{name} line {n}: not JSON ({e.msg})") from None
+            except (ValueError, RecursionError) as e:  # JSONDecodeError is a ValueError
+                raise LogFormatError(f"{name} line {n}: not JSON ({_msg(e)})") from None
             if not isinstance(obj, dict):
                 raise LogFormatError(f"{name} line {n}: not a JSON object")
             rows.append((f"{name} line {n}", obj))
         return rows
     try:
         doc = json.loads(text)
-    except json.JSONDecodeError as e:
-        raise LogFormatError(f"{name}: not JSON (line {e.lineno}: {e.msg})") from None
+    except (ValueError, RecursionError) as e:
+        raise LogFormatError(f"{name}: not JSON ({_msg(e)})") from None
     key = ""
     if isinstance(doc, dict):
         if isinstance(doc.get("columns"), list) and isinstance(doc.get("rows"), list):

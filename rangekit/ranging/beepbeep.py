@@ -50,6 +50,8 @@ __all__ = [
 
 #: Default 1-sigma sample-clock tolerance of a device, ppm.
 DEFAULT_CLOCK_PPM = 30.0
+#: Largest arrival time (and sigma) accepted, s (about 115 days of recording).
+MAX_ONSET_S = 1e7
 
 
 def check_speed(speed_m_s: float) -> float:
@@ -59,7 +61,16 @@ def check_speed(speed_m_s: float) -> float:
 
 def self_distances(self_distance_m, n_devices: int) -> np.ndarray:
     """Broadcast one self-distance, or check a list of ``n_devices`` of them (metres)."""
-    s = np.atleast_1d(np.asarray(self_distance_m, dtype=np.float64))
+    vals = self_distance_m if isinstance(self_distance_m, (list, tuple)) else [self_distance_m]
+    for v in vals if isinstance(vals, (list, tuple)) else ():
+        if isinstance(v, (bool, str)) or v is None:
+            raise V.InvalidParameterError(f"self_distance_m={v!r} must be a number")
+    try:
+        s = np.atleast_1d(np.asarray(self_distance_m, dtype=np.float64))
+    except (TypeError, ValueError, OverflowError):
+        raise V.InvalidParameterError(
+            f"self_distance_m={self_distance_m!r} must be a number or a list of numbers"
+        ) from None
     if s.ndim != 1 or len(s) not in (1, n_devices):
         raise IncompatibleInputError(
             f"{len(s)} self-distances given for {n_devices} devices: give one, or one per device"
@@ -128,6 +139,12 @@ def range_beepbeep(
             raise DetectionError(
                 f"device {i}: found {found} but expected {n} (one per device); "
                 "run `rangekit detect` on the file to see what was found"
+            )
+    for i, a in enumerate(arrivals):
+        ok = np.all(np.isfinite(a.onset_s)) and np.all(np.abs(a.onset_s) <= MAX_ONSET_S)
+        if not ok or not np.all(np.isfinite(a.sigma_s) & (a.sigma_s <= MAX_ONSET_S)):
+            raise V.InvalidParameterError(
+                f"device {i}: onsets and sigmas must be finite and within {MAX_ONSET_S:g} s"
             )
     t = [a.onset_s for a in arrivals]
     v = [a.sigma_s**2 for a in arrivals]

@@ -254,13 +254,43 @@ def read_calibration(path: str | os.PathLike) -> Calibration:
             "cov_speed_offset",
         )
         for k in floats:
-            if not isinstance(getattr(cal, k), (int, float)) or not math.isfinite(getattr(cal, k)):
-                raise TypeError(f"{k} must be a finite number")
+            v = getattr(cal, k)
+            if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+                raise TypeError(f"{k}={v!r} must be a finite number")
+        _check_ranges(cal)
         if cal.scheme not in CALIBRATION_SCHEMES or cal.model not in ("offset", "offset+speed"):
             raise TypeError(f"unknown scheme {cal.scheme!r} or model {cal.model!r}")
     except (TypeError, KeyError) as e:
         raise InputFileError(f"'{p}' is not a valid rangekit calibration: {e}") from None
     return cal
+
+
+#: Bounds of a calibration's values checked by :func:`read_calibration` (the
+#: physically plausible ones; a file outside them is refused, not applied).
+CAL_LIMITS = {
+    "speed_m_s": (200.0, 2000.0),
+    "offset_m": (-100.0, 100.0),
+    "sigma_offset_m": (0.0, 100.0),
+    "latency_s": (-10.0, 10.0),
+    "sigma_latency_s": (0.0, 10.0),
+    "sigma_speed_m_s": (0.0, 1000.0),
+}
+
+
+def _check_ranges(cal: Calibration) -> None:
+    """TypeError naming the first value of ``cal`` outside :data:`CAL_LIMITS`."""
+    for k, (lo, hi) in CAL_LIMITS.items():
+        v = getattr(cal, k)
+        if not lo <= v <= hi:
+            raise TypeError(f"{k}={v!r} must be within [{lo:g}, {hi:g}]")
+    bound = cal.sigma_speed_m_s * cal.sigma_offset_m
+    if abs(cal.cov_speed_offset) > bound * (1 + 1e-9) + 1e-300:
+        raise TypeError(
+            f"cov_speed_offset={cal.cov_speed_offset!r} exceeds sigma_speed_m_s x sigma_offset_m"
+        )
+    n = cal.n_recordings
+    if isinstance(n, bool) or not isinstance(n, int) or n < 1:
+        raise TypeError(f"n_recordings={n!r} must be an integer >= 1")
 
 
 def _offset_fit(d: np.ndarray, tau: np.ndarray, var: np.ndarray, c: float):

@@ -45,6 +45,12 @@ __all__ = [
 DEFAULT_BURST_LEN = 441
 #: Default raised-cosine taper length in samples at each burst end (see docs/accuracy.md).
 DEFAULT_TAPER = 22
+#: Most bursts in a beep (``--bursts``): the detectors' work per beep grows with it, and
+#: a real beep has a handful.
+MAX_BURSTS = 64
+#: Longest beep, s (``(n_bursts - 1) x spacing + burst_len`` at ``fs``): bounds the work
+#: and memory spent per beep.
+MAX_BEEP_S = 10.0
 
 
 @dataclass(frozen=True)
@@ -90,6 +96,14 @@ class Beep:
             self, "burst_len", V.positive_int("burst_len", self.burst_len, minimum=8)
         )
         object.__setattr__(self, "taper", V.positive_int("taper", self.taper, minimum=0))
+        if self.n_bursts > MAX_BURSTS:
+            raise InvalidParameterError(f"n_bursts={self.n_bursts} must be <= {MAX_BURSTS}")
+        span = (self.n_bursts - 1) * self.spacing + self.burst_len
+        if span > MAX_BEEP_S * fs:
+            raise InvalidParameterError(
+                f"the beep lasts {span} samples at fs={fs:g} Hz, more than {MAX_BEEP_S:g} s "
+                "(n_bursts, spacing or burst_len too large)"
+            )
         amp = V.positive("amplitude", self.amplitude)
         if amp > 1.0:
             raise InvalidParameterError(f"amplitude={amp!r} must be <= 1 (full scale)")

@@ -96,7 +96,6 @@ def test_csv_rows_are_written_per_block_before_the_series_ends(tmp_path):
     """Streaming: a block's rows are in the file when its progress call returns; a failure
     later removes the partial file."""
     out = tmp_path / "s.csv"
-    part = tmp_path / ".s.csv.part"
     sink = SeriesSink("echo", "csv", str(out))
     seen = []
 
@@ -105,6 +104,7 @@ def test_csv_rows_are_written_per_block_before_the_series_ends(tmp_path):
             tof = ToF(k, None, 0, 1.0 + k, 1e-3, 30.0, 0.01)
             yield WindowRanges(k, 0.07 * k, (tof,))
             sink.progress(0.07 * (k + 1), 0.21)
+            (part,) = tmp_path.glob(".s.csv.*.part")  # exclusive, random name
             seen.append(part.read_text())
         raise RuntimeError("disk on fire")
 
@@ -115,7 +115,7 @@ def test_csv_rows_are_written_per_block_before_the_series_ends(tmp_path):
         "0.000000,0,0,1.000000,0.001000,30.000000,0.010000",
     ]
     assert len(seen[2].splitlines()) == 4
-    assert not out.exists() and not part.exists()
+    assert not out.exists() and not list(tmp_path.iterdir())
 
 
 def test_json_and_table_formats(files):

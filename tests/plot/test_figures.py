@@ -494,7 +494,7 @@ def test_save_figure_is_atomic_and_checks_the_suffix(tmp_path):
     fig, _ = new_figure()
 
     def broken(path, **kw):
-        Path(path).write_bytes(b"half")
+        path.write(b"half") if hasattr(path, "write") else Path(path).write_bytes(b"half")
         raise OSError(28, "No space left on device")
 
     fig.savefig = broken
@@ -504,6 +504,6 @@ def test_save_figure_is_atomic_and_checks_the_suffix(tmp_path):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["fig.png"]
     with pytest.raises(InvalidParameterError, match=r"unknown format '\.jpg'"):
         save_figure(new_figure()[0], tmp_path / "x.jpg")
-    with pytest.raises(InputFileError, match=r"folder does not exist"):
+    with pytest.raises(InputFileError, match=r"folder .*does not exist"):
         save_figure(new_figure()[0], tmp_path / "no" / "x.png")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["fig.png"]
