@@ -214,20 +214,19 @@ def _read_distances(path) -> tuple[list[int], list[list[float]], str]:
 
 def _read_ranges(path):
     """Ids, (n, 3) distances and sigmas from `range --scheme oneway` output (CSV or JSON)."""
-    import json
 
-    from rangekit.errors import InputFileError, LogFormatError
+    from rangekit.errors import LogFormatError
     from rangekit.io.csvlog import Column, read_table
     from rangekit.localize.uhl_cov import uhl_inputs
 
     name = str(path)
     if name.endswith(".json"):
+        from rangekit.io.sidecar import read_json
+
+        obj = read_json(path)  # guarded: regular file, size, nesting, finite numbers
         try:
-            with open(path, encoding="utf-8") as f:
-                rows = json.load(f)["ranges"]
+            rows = obj["ranges"]
             cols = {k: [r[k] for r in rows] for k in ("tx", "channel", "distance_m", "sigma_m")}
-        except OSError as e:
-            raise InputFileError(f"cannot read '{name}': {e.strerror or e}") from None
         except (ValueError, KeyError, TypeError) as e:
             raise LogFormatError(
                 f'{name}: not the JSON of `rangekit range --scheme oneway` (a "ranges" list '

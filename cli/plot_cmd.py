@@ -289,17 +289,15 @@ def _read_truth(text: str | None):
                 f"{text!r} must be a distance >= 0 in metres or a JSON file", param_hint="--truth"
             )
         return v
-    import json
-
     from rangekit.errors import InputFileError, InvalidParameterError
+    from rangekit.io.sidecar import read_json
 
     try:
-        with open(text, encoding="utf-8") as f:
-            obj = json.load(f)
-    except OSError as e:
-        raise InputFileError(f"cannot read --truth '{text}': {e.strerror or e}") from None
-    except (UnicodeDecodeError, json.JSONDecodeError) as e:
-        raise InvalidParameterError(f"--truth '{text}' is not JSON: {e}") from None
+        obj = read_json(text)  # guarded: regular file, size, nesting, finite numbers
+    except InputFileError as e:
+        if "JSON" in str(e) or "not UTF-8" in str(e):
+            raise InvalidParameterError(f"--truth '{text}' is not JSON: {e}") from None
+        raise
     pairs = obj.get("pairs") if isinstance(obj, dict) else None
     try:
         return {f"{int(p['a'])}-{int(p['b'])}": float(p["distance_m"]) for p in pairs}
