@@ -412,8 +412,15 @@ def _sidecar_values(
     """The ranging parameters and true distances a sidecar gives (rule 1 of the module
     docstring), for a session of ``scheme``. Every value is type- and range-checked
     (``InvalidParameterError`` naming the key): a wrong value is never replaced by a
-    default silently."""
+    default silently.
+
+    A sidecar with a ``"setup"`` object (what ``rangekit synth`` writes,
+    :mod:`rangekit.io.setup`) gives its parameters from there only: the simulator's truth
+    beside it (``devices``, true onsets) is never read as an input."""
     params: dict[str, Any] = {}
+    if "setup" in obj:
+        params = _setup_params(obj["setup"], scheme)
+        obj = {k: v for k, v in obj.items() if k in ("windows", "pairs")}  # truth: scoring only
     beep = obj.get("beep")
     if beep is not None:
         if not isinstance(beep, dict):
@@ -475,6 +482,43 @@ def _sidecar_values(
             d = _number(f"pairs[{k}].distance_m", p["distance_m"], 0.0, _MAX_TRUE_M)
             truth.append((a, b_, d))
     return params, tuple(truth)
+
+
+def _setup_params(setup: Any, scheme: str | None) -> dict[str, Any]:
+    """The parameters of a sidecar's ``setup`` (:func:`rangekit.io.setup.parse_setup`)."""
+    from rangekit.io.setup import parse_setup
+
+    try:
+        s = parse_setup(setup, name="setup")
+    except InputFileError as e:
+        raise InvalidParameterError(str(e).replace("'setup': ", "")) from None
+    signal = s.signal or {}
+    if "probe" in signal:
+        raise InvalidParameterError(
+            f"the session played the probe {signal['probe']!r}; batch ranges the built-in "
+            "beep only (range it with `rangekit range --template`)"
+        )
+    params: dict[str, Any] = {}
+    beep = signal.get("beep")
+    if isinstance(beep, dict):
+        params["beep"] = {
+            k: (_index(f"setup.signal.beep.{k}", v) if _BEEP_KEYS[k] is int
+                else _number(f"setup.signal.beep.{k}", v, 0.0, 1e7))
+            for k, v in beep.items()
+            if k in _BEEP_KEYS
+        }  # fmt: skip
+    if s.temp_c is not None:
+        params["temp_c"] = s.temp_c
+    if s.self_distance_m is not None:
+        params["self_distance_m"] = list(s.self_distance_m)
+    if scheme in ("oneway", "echo") and s.period_s is not None:
+        params["period_s"] = s.period_s
+    if scheme == "oneway":
+        if s.latency_s is not None:
+            params["latency_s"] = s.latency_s
+        if s.tx_order is not None:
+            params["tx_order"] = list(s.tx_order)
+    return params
 
 
 def find_sessions(inputs: Sequence[str | os.PathLike]) -> list[Session]:
@@ -735,6 +779,8 @@ def _ultrasonic_rows(session: Session, scheme: str, opts: BatchOptions) -> list[
         kw["period_s"] = p["period_s"]
     if "latency_s" in p and scheme == "oneway":
         kw["latency_s"] = p["latency_s"]
+    if "tx_order" in p and scheme == "oneway" and kw.get("tx_ids") is None:
+        kw["tx_ids"] = p["tx_order"]
     from rangekit.io.audio import check_period
 
     check_period(session.files, kw.get("period_s"))
