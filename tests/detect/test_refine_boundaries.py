@@ -107,3 +107,29 @@ def test_sigma_above_one_sample_is_finite():
     x = x + 0.3 * np.random.default_rng(4).standard_normal(len(x))
     fit = refine_onset(x, fs=FS, beep=BEEP, a=500)
     assert 1.0 < fit.sigma < 4.0  # measured 1.88 samples
+
+
+def test_defaults_are_the_numpy_path_without_background():
+    """``compiled=False`` and ``background=False`` by default (the compiled kernels give the
+    same numbers only to rounding, so the default's result is the numpy one exactly)."""
+    x = _offset_burst(dc=0.0)
+    kw = {"fs": FS, "beep": BEEP, "lo": 450, "hi": 550}
+    numpy_fit = fit_edge(x, **kw, compiled=False)
+    assert fit_edge(x, **kw) == numpy_fit
+    compiled_fit = fit_edge(x, **kw, compiled=True)
+    assert abs(compiled_fit.onset - numpy_fit.onset) < 1e-9  # same fit, other rounding
+    assert np.array_equal(edge_statistic(x, **kw), edge_statistic(x, **kw, compiled=False))
+    ring = _ringing()
+    kw = {"fs": FS, "beep": BEEP, "lo": 640, "hi": 760}
+    off = edge_statistic(ring, **kw, background=False)
+    assert np.array_equal(edge_statistic(ring, **kw), off)
+    assert not np.allclose(edge_statistic(ring, **kw, background=True), off)
+
+
+def test_n_masked_counts_the_masked_samples_of_the_window():
+    x = _offset_burst(dc=0.0)
+    assert refine_onset(x, fs=FS, beep=BEEP, a=500).n_masked == 0
+    mask = np.zeros(len(x), dtype=bool)
+    mask[495:499] = True  # 4 samples inside the stage-2 window
+    mask[1500:1510] = True  # 10 outside it
+    assert refine_onset(x, fs=FS, beep=BEEP, a=500, mask=mask).n_masked == 4
