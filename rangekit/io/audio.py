@@ -81,8 +81,9 @@ def read_audio(path: str | os.PathLike, *, dtype: str = "auto") -> tuple[np.ndar
     p = _readable(path)
     sf = _sf()
     try:
+        subtype = sf.info(str(p)).subtype
         if dtype == "auto":
-            dtype = "float32" if sf.info(str(p)).subtype in _EXACT_IN_FLOAT32 else "float64"
+            dtype = "float32" if subtype in _EXACT_IN_FLOAT32 else "float64"
         x, fs = sf.read(str(p), dtype=dtype, always_2d=True)
     except sf.LibsndfileError as e:
         raise AudioFormatError(f"'{p}' is not a readable audio file ({e.error_string})") from e
@@ -90,8 +91,10 @@ def read_audio(path: str | os.PathLike, *, dtype: str = "auto") -> tuple[np.ndar
         raise AudioFormatError(f"'{p}' is not a readable audio file ({e})") from e
     if x.shape[0] == 0:
         raise AudioFormatError(f"'{p}' holds no audio samples")
-    if not np.all(np.isfinite(x)):
-        raise AudioFormatError(f"'{p}' holds NaN or infinite samples")
+    # Integer samples are finite: only float files need the (whole-array) check.
+    if subtype in ("FLOAT", "DOUBLE") or not subtype.startswith(("PCM", "ALAW", "ULAW")):
+        if not np.all(np.isfinite(x)):
+            raise AudioFormatError(f"'{p}' holds NaN or infinite samples")
     return x, float(fs)
 
 
