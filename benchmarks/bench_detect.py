@@ -21,9 +21,10 @@ cache load, FFT planning):
 * ``detect_xcorr``: the FFT matched-filter baseline on the whole array (~2.2-2.4 GB peak
   memory for 10 min).  If a 60 s trial projects to more than 60 s or more than half of
   the available memory, it is run on 60 s and scaled, and the row says so.
-* stages of ``detect_changepoint`` (float64): band energy, noise floor, change points,
-  anchors (``_anchor``, or ``_anchors_compiled`` on the numba path), the per-beep edge
-  fits (``_fit_beep``; of which ``edge_statistic`` and ``refine_onset``), ``_combine``, and
+* stages of ``detect_changepoint`` (float64): input check, band energy, noise floor,
+  change points, conditioning, out-of-band check, the compiled beep loop
+  (``_rows_compiled``: every anchor's edge fits, grouping and flags in one kernel call; of
+  which the anchors handed to the numpy reference, ``_beep_row``), aliases, echoes and
   the rest, timed inside one real call by wrapping those functions in
   ``rangekit.detect.changepoint``'s namespace (fastest of ``--repeats`` instrumented
   calls).
@@ -145,15 +146,16 @@ def stages(x: np.ndarray, beep: Beep) -> tuple[dict[str, float], int, float, obj
     Returns (seconds per step, number of ``refine_onset`` calls, whole call, arrivals).
     """
     steps = {
+        "_signal": "input check (no float64 copy)",
         "band_energy": "band_energy (numba)",
         "_floor": "local noise floor",
         "_change_points": "change points",
-        "_anchor": "anchors (beep starts)",
-        "_anchors_compiled": "anchors (beep starts)",
-        "_fit_beep": "per-beep edge fits (_fit_beep)",
-        "edge_statistic": "  of which stage 1 (edge_statistic)",
-        "refine_onset": "  of which stage 2 (refine_onset)",
-        "_combine": "bursts -> beep (_combine)",
+        "_conditioner": "conditioning (clip mask, taps)",
+        "_out_of_band": "out-of-band check",
+        "_rows_compiled": "beep loop (compiled: fits, grouping, flags)",
+        "_beep_row": "  of which anchors done by the reference",
+        "_resolve_aliases": "aliases",
+        "drop_echoes": "echoes",
     }
     acc = dict.fromkeys(steps.values(), 0.0)
     calls = dict.fromkeys(steps.values(), 0)
@@ -182,7 +184,7 @@ def stages(x: np.ndarray, beep: Beep) -> tuple[dict[str, float], int, float, obj
     acc["rest (input check, conditioning, glue)"] = whole - sum(
         v for k, v in acc.items() if not k.startswith(" ")
     )
-    return acc, calls["  of which stage 2 (refine_onset)"], whole, arr
+    return acc, calls["  of which anchors done by the reference"], whole, arr
 
 
 def profile(x: np.ndarray, beep: Beep, t_whole: float, duration_s: float, n_fits: int) -> None:
@@ -327,7 +329,7 @@ def main() -> int:
         if whole < t_st:
             t_st, st_times, n_cand, st_arr = whole, t, n_c, arr_s
     for k, v in st_times.items():
-        note = f"{n_cand} bursts refined" if "refine_onset" in k else ""
+        note = f"{n_cand} anchors" if "reference" in k else ""
         rows.append((f"  stage: {k}", v, note))
 
     t_peer, e_peer = best_time(lambda: stft_peer(x), repeats)
@@ -339,7 +341,8 @@ def main() -> int:
     print()
     print(f"  {'name':<40} {'seconds':>9} {'x-realtime':>11} {'t / t_peer':>11}  note")
     for name, t, note in rows:
-        print(f"  {name:<40} {t:9.3f} {duration_s / t:10.0f}x {t / t_peer:10.2f}x  {note}")
+        rt = f"{duration_s / t:10.0f}x" if t > 0 else f"{'-':>11}"
+        print(f"  {name:<40} {t:9.3f} {rt} {t / t_peer:10.2f}x  {note}")
     print(
         f"  peer check: band_energy at {46 * FS / N_WIN:.1f} Hz vs ShortTimeFFT bin 46: "
         f"max |diff| / max = {rel:.1e}"

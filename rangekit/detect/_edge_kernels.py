@@ -1036,113 +1036,6 @@ def _change_points_py(
     return out[:m]
 
 
-def _rails_py(x: np.ndarray, t_hi: float, t_lo: float) -> tuple[np.ndarray, np.ndarray]:
-    """Indices of the samples at or above ``t_hi`` and at or below ``t_lo`` (compared in
-    float64). Blocks of 4096 samples are counted first (a loop that vectorises); only
-    blocks with hits are searched."""
-    n = x.shape[0]
-    hi = np.empty(64, dtype=np.int64)
-    lo = np.empty(64, dtype=np.int64)
-    a = 0
-    b = 0
-    for s0 in range(0, n, 4096):
-        s1 = min(n, s0 + 4096)
-        c = 0
-        for i in range(s0, s1):
-            v = float(x[i])
-            c += (1 if v >= t_hi else 0) + (1 if v <= t_lo else 0)
-        if c == 0:
-            continue
-        if a + c > hi.shape[0] or b + c > lo.shape[0]:
-            m = 2 * max(hi.shape[0], a + c, b + c)
-            hi2 = np.empty(m, dtype=np.int64)
-            lo2 = np.empty(m, dtype=np.int64)
-            hi2[:a] = hi[:a]
-            lo2[:b] = lo[:b]
-            hi, lo = hi2, lo2
-        for i in range(s0, s1):
-            v = float(x[i])
-            if v >= t_hi:
-                hi[a] = i
-                a += 1
-            if v <= t_lo:
-                lo[b] = i
-                b += 1
-    return hi[:a].copy(), lo[:b].copy()
-
-
-def _any_in(idx: np.ndarray, a: int, b: int) -> bool:
-    """Whether the sorted ``idx`` holds a value in ``[max(a, 0), b)``."""
-    if idx.shape[0] == 0:
-        return False
-    j = np.searchsorted(idx, max(a, 0))
-    return j < idx.shape[0] and idx[j] < b
-
-
-def _all_finite_py(x: np.ndarray) -> bool:
-    """Whether every sample of ``x`` is finite (one pass, no temporary array)."""
-    acc = 0.0
-    for i in range(x.shape[0]):
-        acc += x[i] * 0.0  # NaN for a NaN or an infinity, else 0
-    return acc == 0.0
-
-
-def _change_points_py(
-    e: np.ndarray, floor: np.ndarray, gap: int, nb: int, thr_f: float, thr_r: float
-) -> np.ndarray:
-    """``changepoint._change_points`` (the same arithmetic per frame): frames where ``e``
-    first exceeds both ``thr_f`` times the floor and ``thr_r`` times the mean of the
-    ``nb`` frames ending ``gap`` frames earlier."""
-    n = e.shape[0]
-    cs = np.empty(n + 1)
-    cs[0] = 0.0
-    acc = 0.0
-    for i in range(n):
-        acc += e[i]
-        cs[i + 1] = acc
-    out = np.empty(n, dtype=np.int64)
-    m = 0
-    prev = False
-    for i in range(n):
-        fl = max(floor[i], 1e-30)
-        hi = max(i - gap, 0)
-        lo = max(i - gap - nb, 0)
-        cnt = hi - lo
-        pre = (cs[hi] - cs[lo]) / max(cnt, 1) if cnt > 0 else fl
-        thr = max(fl * thr_f, pre * thr_r)
-        above = e[i] > thr
-        if above and not prev:
-            out[m] = i
-            m += 1
-        prev = above
-    return out[:m]
-
-
-def _rails_py(x: np.ndarray, t_hi: float, t_lo: float) -> tuple[np.ndarray, np.ndarray]:
-    """Indices of the samples at or above ``t_hi`` and at or below ``t_lo`` (compared in
-    float64)."""
-    n_hi = 0
-    n_lo = 0
-    for i in range(x.shape[0]):
-        v = float(x[i])
-        n_hi += 1 if v >= t_hi else 0
-        n_lo += 1 if v <= t_lo else 0
-    hi = np.empty(n_hi, dtype=np.int64)
-    lo = np.empty(n_lo, dtype=np.int64)
-    a = 0
-    b = 0
-    if n_hi + n_lo:
-        for i in range(x.shape[0]):
-            v = float(x[i])
-            if v >= t_hi:
-                hi[a] = i
-                a += 1
-            if v <= t_lo:
-                lo[b] = i
-                b += 1
-    return hi, lo
-
-
 def _dedupe_py(starts: np.ndarray, rising: np.ndarray, min_rise: int, hop: int) -> np.ndarray:
     """``detect_changepoint``'s anchors: starts with ``min_rise`` rising places, each more
     than ``hop`` from the last 8 kept ones."""
@@ -1173,7 +1066,6 @@ _KERNELS = {
     "dedupe": _dedupe_py,
     "all_finite": _all_finite_py,
     "change_points": _change_points_py,
-    "rails": _rails_py,
 }
 _HELPERS = (
     _env,

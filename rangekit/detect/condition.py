@@ -34,10 +34,6 @@ import numpy as np
 
 from rangekit import _validate as V
 
-#: Inputs at least this long are scanned by compiled kernels (``_edge_kernels``; numba is
-#: imported for them anyway, see ``rangekit.detect._kernels.NUMBA_MIN_SAMPLES``).
-_NUMBA_MIN_SAMPLES = 1_000_000
-
 __all__ = [
     "DEFAULT_ATTEN_DB",
     "active_floor",
@@ -230,13 +226,10 @@ def clip_mask(
     if span <= 0.0:
         return mask
     tol = rel_tol * span
-    if len(x) >= _NUMBA_MIN_SAMPLES:  # one pass, no temporaries (numba is loaded then)
-        from rangekit.detect import _edge_kernels
-
-        near_hi, near_lo = _edge_kernels.call("rails", x, hi - tol, lo + tol)
-    else:
-        near_hi = np.flatnonzero(x >= _threshold(hi - tol, x.dtype, up=True))
-        near_lo = np.flatnonzero(x <= _threshold(lo + tol, x.dtype, up=False))
+    # float32 samples compared in float32 with thresholds that compare as the float64
+    # ones do (no float64 copy of a long recording)
+    near_hi = np.flatnonzero(x >= _threshold(hi - tol, x.dtype, up=True))
+    near_lo = np.flatnonzero(x <= _threshold(lo + tol, x.dtype, up=False))
     for idx, rail in ((near_hi, hi), (near_lo, lo)):
         if rail == 0.0 or len(idx) < min_run:
             continue  # digital silence at a rail is not clipping

@@ -9,17 +9,21 @@ descriptions, one resonator per element and two stagger-tuned resonators per ele
 (:class:`rangekit.detect.stagger.StaggerModel`), and keeps the one the data favour.
 
 **Choice.** Per group (one Tx and one receiver) the first ``N_TEST`` arrivals above the
-low-SNR level are fitted with both models on the same segment. Each gives
-``chi2 + K_ADD^2 n_paths`` (every path must buy ``K_ADD^2`` noise variances to be added,
-so a path the resonator needs only to mimic the stagger's shape counts against it), and
-the difference ``D_w`` between them is summed. Schwarz's criterion (BIC) for the stagger
-model's two further transducer parameters, shared by the group, gives the log Bayes
-factor ``L = (sum D_w - 2 n_free) / 2 - ln N`` (``n_free`` the pairs of free fits, whose
+low-SNR level are fitted with both models on the same segment (the stagger fit from the
+resonator fit's paths, moved by the two models' difference of group delay; where the
+resonator fit holds paths weaker than ``STRONG`` of its strongest, both models also
+without them). Each model's fit is scored by Schwarz's criterion ``chi2 + 3 ln(n)
+n_paths`` (its best of the path choices) and the difference ``D_w`` between them (0 where
+the stagger is worse: it nests the resonator to a misfit of 1e-4, so worse means stuck)
+gives the log Bayes factor of the stagger's two further parameters, shared by the group,
+``L = (n_w median(D_w) - 2 n_free) / 2 - ln N`` (``n_free`` the pairs of free fits, whose
 two extra parameters each lower the stagger's chi-square by 2 on average when the
-resonator is right; ``N`` the samples fitted), and the posterior probability of the
-stagger model ``w = 1 / (1 + exp(-L))``. The model with ``w`` or ``1 - w`` above one half
-times every arrival of the group (held at its running estimate after ``N_FREE_FITS`` free
-fits, pooled as in :func:`rangekit.detect.pathfit.pool_fits`).
+resonator is right; ``N`` the samples fitted; the median so that one stuck window does
+not decide), and the posterior probability of the stagger model ``w = 1 / (1 +
+exp(-L))``. The model with ``w`` or ``1 - w`` above one half times every arrival of the
+group (held at its running estimate after ``N_FREE_FITS`` free fits, pooled as in
+:func:`rangekit.detect.pathfit.pool_fits`; the stagger's free fits refitted at the
+group's robust estimate).
 
 **Sigma.** Besides the chosen model's Cramér-Rao bound (and misfit term,
 :func:`rangekit.detect.matched._fit_sigma`), each onset's variance gets the model
@@ -53,24 +57,29 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from dataclasses import dataclass
 
 import numpy as np
 
 from rangekit import _validate as V
 from rangekit.detect import matched as M
-from rangekit.detect.pathfit import K_ADD, PathFit, fit_arrival, pool_fits
+from rangekit.detect.pathfit import PathFit, fit_arrival, pool_fits
 from rangekit.errors import InvalidParameterError
 from rangekit.types import Arrivals, flag_bit
 
-__all__ = ["N_TEST", "detect_fitted"]
+__all__ = ["N_TEST", "ChannelFit", "check_shapes", "detect_fitted", "fit_channel"]
+
+#: The comparison's fits stop within 0.05 noise variances of their optimum (its
+#: evidence is counted in units of several).
+TEST_FIT = {"tol": 0.05, "max_iter": 15}
+#: A stagger fit is also tried without the resonator fit's paths weaker than this
+#: fraction of its strongest (paths a resonator adds to mimic a longer response).
+STRONG = 0.5
 
 #: Arrivals per group fitted with both transducer models before one is chosen.
 N_TEST = 3
 #: Free fits of a group (per model) before later arrivals hold the running estimate.
 N_FREE_FITS = M.N_FREE_FITS
-#: Penalty per fitted path in the model comparison, noise variances (the path-adding
-#: rule's own: a path is added only where it lowers the chi-square by ``K_ADD^2``).
-PEN_PATH = K_ADD**2
 
 
 def _fit_one(x, lag, model, sigma, acc, q0, kw, low, theta=None, start=None) -> PathFit | None:
@@ -93,6 +102,13 @@ def _fit_one(x, lag, model, sigma, acc, q0, kw, low, theta=None, start=None) -> 
             fit = fit_arrival(x, lag, model=model, sigma=sigma, theta=theta, start=start, **kw)
         else:
             fit = fit_arrival(x, lag, model=model, sigma=sigma, q0=q0, **kw)
+    _accumulate(acc, fit, model, low)
+    return fit
+
+
+def _accumulate(acc, fit, model, low) -> None:
+    """Add ``fit`` to the running estimate ``acc`` (above the low-SNR level)."""
+    p = model.n_theta
     if fit is not None and fit.snr >= low and np.linalg.det(fit.info) > 0:
         if not acc:
             acc.extend([np.zeros((p, p)), np.zeros(p), 0, None, []])
@@ -109,7 +125,6 @@ def _fit_one(x, lag, model, sigma, acc, q0, kw, low, theta=None, start=None) -> 
                     acc[3] = fit.theta_hat
             else:  # four parameters: a free fit gone astray must not set the estimate
                 acc[3] = _robust_theta(acc[4])
-    return fit
 
 
 def _robust_theta(fits) -> np.ndarray:
@@ -139,8 +154,9 @@ def _stagger_start(fit_r: PathFit, res_model, stag_model):
 
     th = stag_model.theta_start(fit_r.q, fit_r.f0_hz)
     shift = group_delay_samples(res_model, fit_r.theta_lin) - group_delay_samples(stag_model, th)
-    keep = fit_r.amplitudes >= 0.25 * fit_r.amplitudes.max()
-    return th, fit_r.onsets[keep] + shift
+    # Every path of the resonator fit (also its small ones): the two models are compared
+    # on the same paths, or a path the resonator fit added would count for the stagger.
+    return th, fit_r.onsets + shift
 
 
 class _Group:
@@ -152,7 +168,13 @@ class _Group:
         self.family: str | None = None
         self.w = 1.0
 
-    def decide(self) -> None:
+    def decide(self, force=None) -> None:
+        if isinstance(force, tuple):  # the receivers' consensus shape
+            self.family, self.w = force[0], 1.0
+            return
+        if force is not None:
+            self.family, self.w = force, 0.5
+            return
         if not self.tests:
             self.family, self.w = "resonator", 1.0
             return
@@ -166,12 +188,52 @@ class _Group:
         self.family = "stagger" if w_s > 0.5 else "resonator"
         self.w = w_s if self.family == "stagger" else 1.0 - w_s
 
+    def clearly_resonator(self) -> bool:
+        """Before ``N_TEST`` tests: the resonator wins even if the remaining tests gave the
+        largest evidence seen so far (the median is then at most that), at odds of 99:1."""
+        d = max(t[0] for t in self.tests)
+        scale = N_TEST / len(self.tests)
+        n = sum(t[3] for t in self.tests) * scale
+        n_free = sum(t[1] for t in self.tests) * scale
+        return 0.5 * N_TEST * d - n_free - math.log(max(n, 2)) < -math.log(99.0)
+
     @property
     def d2(self) -> float:
         return float(np.median([t[2] ** 2 for t in self.tests])) if self.tests else 0.0
 
 
-def detect_fitted(
+def detect_fitted(x: np.ndarray, **kw) -> Arrivals:
+    """First-path arrivals of one channel, timed by the transducer fit of the chosen model.
+
+    :func:`fit_channel`'s arrivals; keyword arguments as there.
+    """
+    return fit_channel(x, **kw).arrivals
+
+
+@dataclass(frozen=True)
+class ChannelFit:
+    """:func:`fit_channel`'s result: the arrivals and the stagger shapes it chose.
+
+    Attributes
+    ----------
+    arrivals : Arrivals
+        As :func:`rangekit.detect.matched.detect_matched` with ``model``.
+    family : ndarray of str, shape (n,)
+        The transducer model that timed each arrival.
+    group : list
+        Each arrival's group label.
+    shapes : dict
+        Per group that chose the stagger model: its robust ``theta`` and that estimate's
+        covariance (the inverse of the summed information of its fits).
+    """
+
+    arrivals: Arrivals
+    family: np.ndarray
+    group: list
+    shapes: dict
+
+
+def fit_channel(
     x: np.ndarray,
     *,
     fs: float,
@@ -186,7 +248,8 @@ def detect_fitted(
     q0: float = 4.0,
     groups: Sequence[int] | None = None,
     pool: bool = True,
-) -> Arrivals:
+    force: dict | None = None,
+) -> ChannelFit:
     """First-path arrivals of one channel, timed by the transducer fit of the chosen model.
 
     Parameters
@@ -206,12 +269,17 @@ def detect_fitted(
         As :func:`rangekit.detect.matched.detect_matched` (``groups``: windows with
         equal labels went through the same transducers; the model is chosen and
         ``theta`` pooled per group; ``pool=False``: every window on its own).
+    force : dict, optional
+        Group label -> ``"resonator"`` (those groups are timed by the resonator whatever
+        the comparison says, with the model-choice variance of an undecided choice, ``w
+        = 1/2``) or ``("stagger", theta)`` (by the stagger model held at ``theta`` from
+        the first arrival on); what :func:`check_shapes` returns.
 
     Returns
     -------
-    Arrivals
-        As :func:`rangekit.detect.matched.detect_matched` with ``model``; ``sigma``
-        includes the model-choice term (module doc).
+    ChannelFit
+        The arrivals (as :func:`rangekit.detect.matched.detect_matched` with ``model``;
+        ``sigma`` includes the model-choice term, module doc) and the chosen models.
     """
     fs = V.sample_rate(fs)
     x = V.signal_1d("x", x)
@@ -255,7 +323,15 @@ def detect_fitted(
         if not 0.1 * noise * noise_scale <= sigma <= 2.0 * noise * noise_scale:
             sigma = noise * noise_scale
         key = int(labels[w]) if pool else ("w", w)
-        g = state.setdefault(key, _Group())
+        g = state.get(key)
+        if g is None:
+            g = state[key] = _Group()
+            fk = force.get(key) if force else None
+            if isinstance(fk, tuple):  # held at the consensus from the first arrival
+                g.decide(fk)
+                th = np.asarray(fk[1], dtype=np.float64)
+                p_ = len(th)
+                g.acc["stagger"].extend([np.zeros((p_, p_)), np.zeros(p_), N_FREE_FITS, th, []])
         kw = {"k_noise": k_noise, "rel_threshold": rel_threshold, "lo": s0 + l_, "hi": s0 + h_}
         lag = a + p.lag
         got: dict[str, PathFit | None] = {}
@@ -265,18 +341,45 @@ def detect_fitted(
         if stag_model is not None and g.family is None and fr is not None:
             th, start = _stagger_start(fr, res_model, stag_model)
             lag_s = fr.n0 + stag_model.pre
-            fs_ = _fit_one(
-                x, lag_s, stag_model, sigma, g.acc["stagger"], q0, kw, low, theta=th, start=start
-            )
+            n_seg = len(x[fr.n0 : fr.n0 + res_model.segment])
+            pen = 3.0 * math.log(n_seg)  # BIC: onset and complex amplitude per path
+            strong = fr.amplitudes >= STRONG * fr.amplitudes.max()
+            if g.acc["stagger"] and g.acc["stagger"][2] >= N_FREE_FITS:
+                starts = [start]
+            else:
+                # The resonator fit may have added a weak path to mimic a longer response
+                # (the stagger's shape): try the stagger without the weak paths too.
+                starts = [start] + ([start[strong]] if not strong.all() else [])
+            fs_ = None
+            for st_ in starts:
+                # The resonator fit's paths and no others (the comparison's), so no path
+                # scans: a test costs a few Levenberg-Marquardt steps.
+                cand = _fit_one(
+                    x, lag_s, stag_model, sigma, [] if len(starts) > 1 else g.acc["stagger"],
+                    q0, {**kw, "max_paths": len(st_), **TEST_FIT}, low, theta=th, start=st_,
+                )  # fmt: skip
+                if cand is not None and (
+                    fs_ is None or cand.chi2 + pen * cand.n_paths < fs_.chi2 + pen * fs_.n_paths
+                ):
+                    fs_ = cand
+            if len(starts) > 1 and fs_ is not None:
+                _accumulate(g.acc["stagger"], fs_, stag_model, low)
             got["stagger"] = fs_
             if fs_ is not None and fs_.n0 == fr.n0 and fr.snr >= low:
-                d = (fr.chi2 + PEN_PATH * fr.n_paths) - (fs_.chi2 + PEN_PATH * fs_.n_paths)
+                bic_r = fr.chi2 + pen * fr.n_paths
+                if len(starts) > 1:  # the same choice of paths for the resonator
+                    alt = fit_arrival(
+                        x, lag_s, model=res_model, sigma=sigma, theta=fr.theta_lin,
+                        start=fr.onsets[strong], max_paths=int(strong.sum()), **TEST_FIT, **kw,
+                    )  # fmt: skip
+                    if alt is not None and alt.n0 == fr.n0:
+                        bic_r = min(bic_r, alt.chi2 + pen * alt.n_paths)
+                d = bic_r - (fs_.chi2 + pen * fs_.n_paths)
                 d = max(d, 0.0)  # the stagger nests the resonator to 1e-4: worse = stuck
                 free = fr.n_par > 3 * fr.n_paths and fs_.n_par > 3 * fs_.n_paths
-                n_seg = len(x[fr.n0 : fr.n0 + res_model.segment])
                 g.tests.append((d, free, fs_.onset - fr.onset, n_seg))
-            if len(g.tests) >= N_TEST:
-                g.decide()
+            if len(g.tests) >= N_TEST or (g.tests and g.clearly_resonator()):
+                g.decide(force.get(key) if force else None)
         elif g.family == "stagger":
             got["stagger"] = _fit_one(x, lag, stag_model, sigma, g.acc["stagger"], q0, kw, low)
         any_fit = next((f for f in got.values() if f is not None), None)
@@ -293,9 +396,9 @@ def detect_fitted(
                 k=0.5 * (k_detect + k_noise), rel=rel_threshold,
             )
         )  # fmt: skip
-    for g in state.values():
+    for key, g in state.items():
         if g.family is None:
-            g.decide()
+            g.decide(force.get(key) if force else None)
     chosen: list[PathFit | None] = []
     for got, key in zip(fits, keys, strict=True):
         fam = state[key].family
@@ -349,17 +452,89 @@ def detect_fitted(
             flags[i] |= flag_bit("low_snr")
         if early[i]:
             flags[i] |= flag_bit("ambiguous_first_path")
+    shapes = {}
+    for key, g in state.items():
+        acc = g.acc["stagger"]
+        if g.family == "stagger" and acc and acc[4]:
+            try:
+                shapes[key] = (_robust_theta(acc[4]), np.linalg.inv(acc[0]))
+            except np.linalg.LinAlgError:
+                pass
+    fam = np.array([f.family if f is not None else "" for f in chosen], dtype=object)
     if not rows:
         e = Arrivals.empty(fs=fs, n_bursts=1, detector="matched")
-        return Arrivals(
+        arrivals = Arrivals(
             e.onset, fs, e.sigma, e.snr_db, e.confidence, e.burst_onsets, "matched",
             np.zeros(0, dtype=int),
         )  # fmt: skip
+        return ChannelFit(arrivals, fam, keys, shapes)
     arr = np.array(rows, dtype=np.float64)
     onset = arr[:, 0]
     snr_db = 20.0 * np.log10(np.maximum(arr[:, 2], 1e-300))
     conf = np.minimum(arr[:, 3], 1.0)
-    return Arrivals(
+    arrivals = Arrivals(
         onset, fs, arr[:, 1], snr_db, conf, onset[:, None].copy(), "matched",
         arr[:, 4].astype(int), flags,
     )  # fmt: skip
+    return ChannelFit(arrivals, fam, keys, shapes)
+
+
+#: Stagger shapes ``nu / a^2`` of one transmitter's groups (receivers) disagree beyond
+#: this many sigma plus ``SHAPE_SLACK`` (receivers of one type differ a little).
+SHAPE_Z = 4.0
+SHAPE_SLACK = 0.25
+
+
+def _agree(a, b) -> bool:
+    """Whether two (theta, cov) stagger shapes agree within ``SHAPE_Z`` sigma + slack."""
+    d = a[0][2:] - b[0][2:]
+    c = a[1][2:, 2:] + b[1][2:, 2:]
+    n = float(np.linalg.norm(d))
+    if n <= SHAPE_SLACK:
+        return True
+    d = d * (1.0 - SHAPE_SLACK / n)
+    try:
+        return float(d @ np.linalg.solve(c, d)) <= SHAPE_Z**2
+    except np.linalg.LinAlgError:
+        return False
+
+
+def check_shapes(fits: Sequence[ChannelFit]) -> list[dict]:
+    """Per channel, the groups to refit because the receivers disagree on the shape.
+
+    The split ``nu / a^2`` of the stagger model belongs to the transducers: a transmitter
+    heard by several receivers (of one type) gives one shape in all of them. A room's dense
+    early reflections can be mimicked by the stagger's longer response too, but they differ
+    from receiver to receiver, and a four-parameter fit may settle in a wrong optimum in
+    one receiver. Per group label (transmitter), the receivers whose shapes agree
+    (``SHAPE_Z`` sigma plus ``SHAPE_SLACK``) with the median shape are the consensus:
+
+    * a majority (at least two) agree: each receiver that disagrees is refitted with the
+      stagger model held at the consensus (``("stagger", theta)``);
+    * no majority: every receiver that chose the stagger model is refitted with the
+      resonator (``"resonator"``), with the model-choice variance of an undecided choice.
+
+    Returns one ``force`` dict (:func:`fit_channel`) per channel (empty: keep the fit).
+    """
+    out: list[dict] = [{} for _ in fits]
+    labels = {k for f in fits for k in f.shapes}
+    for k in labels:
+        chans = [c for c, f in enumerate(fits) if k in f.shapes]
+        if len(chans) < 2:
+            continue
+        sh = [fits[c].shapes[k] for c in chans]
+        med = (np.median([t for t, _ in sh], axis=0), np.median([c for _, c in sh], axis=0))
+        ok = [_agree(x, med) for x in sh]
+        if all(ok) and all(_agree(a, b) for a in sh for b in sh):
+            continue
+        if sum(ok) >= 2 and sum(ok) > len(sh) / 2:
+            good = [x for x, o in zip(sh, ok, strict=True) if o]
+            info = sum(np.linalg.inv(c) for _, c in good)
+            theta = np.linalg.solve(info, sum(np.linalg.inv(c) @ t for t, c in good))
+            for c, o in zip(chans, ok, strict=True):
+                if not o:
+                    out[c][k] = ("stagger", theta)
+        else:
+            for c in chans:
+                out[c][k] = "resonator"
+    return out

@@ -596,6 +596,8 @@ def fit_arrival(
     rel_threshold: float = 0.25,
     lo: float = -math.inf,
     hi: float = math.inf,
+    tol: float = 1e-3,
+    max_iter: int = MAX_ITER,
 ) -> PathFit | None:
     """Fit the paths of the arrival near ``lag`` in ``x``; the first path's onset.
 
@@ -634,6 +636,9 @@ def fit_arrival(
     lo, hi : float
         The first path must lie in ``[lo, hi)`` (absolute samples; e.g. the search range,
         so that an echo sensor's ring-down before it is fitted but never taken).
+    tol, max_iter : float, int
+        Levenberg-Marquardt stops when a step would gain less than ``tol`` noise
+        variances, or after ``max_iter`` steps (per fit of a path set).
 
     Returns
     -------
@@ -652,7 +657,9 @@ def fit_arrival(
         if len(seg) < len(model.drive):
             return None
         u_start = None if start is None else np.asarray(start, dtype=np.float64) - n0
-        res = _paths(seg, model, sigma, th0, hold, k_add, rel_add, max_paths, u_start)
+        res = _paths(
+            seg, model, sigma, th0, hold, k_add, rel_add, max_paths, u_start, tol, max_iter
+        )
         if res is None:
             return None
         u_min = float(np.min(res.u))
@@ -766,12 +773,15 @@ def _amps(st: _State) -> np.ndarray:
     return np.hypot(st.a[0::2], st.a[1::2])
 
 
-def _paths(seg, model, sigma, th0, hold, k_add, rel_add, max_paths, u_start=None):
+def _paths(
+    seg, model, sigma, th0, hold, k_add, rel_add, max_paths, u_start=None, tol_var=1e-3,
+    max_iter=MAX_ITER,
+):  # fmt: skip
     """Paths of one segment: a first fit, a two-path scan where one path does not
     explain it, then further paths at the residual's matched-filter peak, all refitted
     jointly (``theta`` too unless ``hold``)."""
     fit = not hold
-    tol = 1e-3 * sigma**2
+    tol = tol_var * sigma**2
     j_max = max(1, len(seg) - len(model.drive) // 2)
     # First path: from the held model's matched filter, given onsets, or a scan over Q.
     if hold or u_start is not None:
@@ -790,7 +800,7 @@ def _paths(seg, model, sigma, th0, hold, k_add, rel_add, max_paths, u_start=None
             return None
         u_init = [float(j)]
         amp_scale = math.sqrt(max(p, 0.0) / _energy(model, thi))
-    st = fit_paths(seg, model, u_init, theta=thi, fit_theta=fit, tol=tol)
+    st = fit_paths(seg, model, u_init, theta=thi, fit_theta=fit, tol=tol, max_iter=max_iter)
     amp_scale = max(amp_scale, float(_amps(st).max()))
     n_theta = model.n_theta if fit else 0
     # A reflection within about a resolution merges with the direct path into one wider
@@ -823,7 +833,11 @@ def _paths(seg, model, sigma, th0, hold, k_add, rel_add, max_paths, u_start=None
             break
         new = fit_paths(seg, model, [*st.u.tolist(), _interp(z, j)], theta=th,
                         fit_theta=fit, tol=tol)  # fmt: skip
-        if new.cost >= st.cost or not _well_posed(new, model, amp_scale):
+        # A path must pay for its three parameters (Schwarz's 3 ln n noise variances),
+        # or it is model error fitted as a path (a transducer not quite the model's).
+        if st.cost - new.cost < 3.0 * math.log(n) * sigma**2 or not _well_posed(
+            new, model, amp_scale
+        ):
             break
         st = new
     return st

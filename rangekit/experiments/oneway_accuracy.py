@@ -25,7 +25,7 @@ The bound scales as ``d * noise_sigma``, so it is computed once for a unit wavef
 rangekit.experiments.oneway_accuracy``): the same set-up with Tx and Rx transducers of a
 given Q (4-20) that the ranging is not told (it fits them,
 :mod:`rangekit.detect.pathfit`), optionally of another model than rangekit's resonator
-(:class:`rangekit.signals.transducer.BandpassTransducer`,
+(:class:`rangekit.signals.transducer.BandpassTransducer` of 4th and 6th order,
 :class:`~rangekit.signals.transducer.CoupledTransducer`), a reflection stronger than the
 direct path arriving 0.2-2 ms after it (a ceiling or floor bounce), and several
 activation windows per trial (a robot at rest hearing the same Tx in turn), so that the
@@ -297,15 +297,18 @@ def summarize(rows: Sequence[dict], *, outlier_crb: float = OUTLIER_CRB) -> dict
 
 
 #: Transducer models of :func:`make_transducer`.
-TRANSDUCER_MODELS = ("resonator", "bandpass", "coupled")
+TRANSDUCER_MODELS = ("resonator", "bandpass", "coupled", "bandpass6")
 
 
 def make_transducer(model: str, q: float, *, f0_hz: float = 40000.0):
     """A transducer of ``model`` (:data:`TRANSDUCER_MODELS`) with quality factor ``q``.
 
-    ``"resonator"``: rangekit's second-order resonator (the estimator's own model, Q
+    ``"resonator"``: rangekit's second-order resonator (the estimator's first model, Q
     unknown to it); ``"bandpass"``: a 4th-order Butterworth band-pass with the same -3 dB
-    band; ``"coupled"``: two resonators of Q ``q`` stagger-tuned half a band either side.
+    band; ``"coupled"``: two resonators of Q ``q`` stagger-tuned half a band either side
+    (both inside the estimator's second model, :mod:`rangekit.detect.stagger`, with their
+    parameters unknown to it); ``"bandpass6"``: a 6th-order Butterworth band-pass (three
+    pole pairs per element: outside both models, the check beyond them).
     """
     if model == "resonator":
         return Transducer(f0_hz, q)
@@ -313,6 +316,8 @@ def make_transducer(model: str, q: float, *, f0_hz: float = 40000.0):
         return BandpassTransducer(f0_hz, q)
     if model == "coupled":
         return CoupledTransducer(f0_hz, q)
+    if model == "bandpass6":
+        return BandpassTransducer(f0_hz, q, order=3)
     raise InvalidParameterError(f"model={model!r} must be one of {', '.join(TRANSDUCER_MODELS)}")
 
 

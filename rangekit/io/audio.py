@@ -161,8 +161,9 @@ def read_audio(path: str | os.PathLike, *, dtype: str = "auto") -> tuple[np.ndar
     try:
         with sf.SoundFile(str(p)) as f:
             check_memory(p, f.frames, f.channels)
+            subtype = f.subtype
             if dtype == "auto":
-                dtype = "float32" if f.subtype in _EXACT_IN_FLOAT32 else "float64"
+                dtype = "float32" if subtype in _EXACT_IN_FLOAT32 else "float64"
             x = f.read(dtype=dtype, always_2d=True)
             fs = f.samplerate
     except RangekitError:
@@ -173,9 +174,12 @@ def read_audio(path: str | os.PathLike, *, dtype: str = "auto") -> tuple[np.ndar
         raise AudioFormatError(f"'{p}' is not a readable audio file ({e})") from e
     if x.shape[0] == 0:
         raise AudioFormatError(f"'{p}' holds no audio samples")
-    if not np.all(np.isfinite(x)):
-        raise AudioFormatError(f"'{p}' holds NaN or infinite samples")
-    _check_peak(x, f"'{p}'")
+    # Integer samples are finite and within full scale: only float files need the
+    # (whole-array) checks.
+    if subtype in ("FLOAT", "DOUBLE") or not subtype.startswith(("PCM", "ALAW", "ULAW")):
+        if not np.all(np.isfinite(x)):
+            raise AudioFormatError(f"'{p}' holds NaN or infinite samples")
+        _check_peak(x, f"'{p}'")
     return x, float(fs)
 
 

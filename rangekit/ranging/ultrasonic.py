@@ -198,20 +198,55 @@ def _ranges(
     if tx_ids is not None:
         k = first_window + np.arange(len(windows))
         groups = np.asarray(tx_ids, dtype=np.int64)[k % len(tx_ids)]
-    for ch in range(x.shape[0]):
-        if model is None:
-            arr = detect_matched(
-                x[ch], fs=fs, template=template, windows=windows, search=(lo, hi),
-                block=block, **thresholds,
-            )  # fmt: skip
-        else:
-            from rangekit.detect.fitted import detect_fitted
+    per_channel = []
+    if model is None:
+        for ch in range(x.shape[0]):
+            per_channel.append(
+                detect_matched(
+                    x[ch],
+                    fs=fs,
+                    template=template,
+                    windows=windows,
+                    search=(lo, hi),
+                    block=block,
+                    **thresholds,
+                )
+            )
+    else:
+        from rangekit.detect.fitted import check_shapes, fit_channel
 
-            arr = detect_fitted(
+        cf = [
+            fit_channel(
+                x[ch],
+                fs=fs,
+                template=template,
+                models=model,
+                windows=windows,
+                search=(lo, hi),
+                block=block,
+                q0=q0,
+                groups=groups,
+                pool=pool,
+                **thresholds,
+            )
+            for ch in range(x.shape[0])
+        ]
+        # A transducer's shape is the same through every receiver (multipath is not):
+        # a receiver that disagrees with the others is refitted at their shape, and
+        # without a consensus the resonator times that transmitter's arrivals.
+        forces = check_shapes(cf) if pool else [{} for _ in cf]
+        cf = [
+            fit_channel(
                 x[ch], fs=fs, template=template, models=model, windows=windows,
                 search=(lo, hi), block=block, q0=q0, groups=groups, pool=pool,
-                **thresholds,
-            )  # fmt: skip
+                force=forces[ch], **thresholds,
+            )
+            if forces[ch]
+            else f
+            for ch, f in enumerate(cf)
+        ]  # fmt: skip
+        per_channel = [f.arrivals for f in cf]
+    for ch, arr in enumerate(per_channel):
         found = dict(zip(arr.window.tolist(), range(len(arr)), strict=True))
         for w, (s0, _) in enumerate(windows):
             k = first_window + w

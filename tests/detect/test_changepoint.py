@@ -219,3 +219,16 @@ def test_integer_pcm_is_read_into_float32_exactly(tmp_path, subtype):
     assert load_devices([f])[0].x.dtype == np.float64
     with pytest.raises(InvalidParameterError, match="dtype"):
         read_audio(f, dtype="int16")
+
+
+def test_a_float_file_with_nan_is_refused(tmp_path):
+    import soundfile as sf
+
+    from rangekit.errors import AudioFormatError
+    from rangekit.io.audio import read_audio
+
+    x = np.zeros((100, 1), dtype=np.float32)
+    x[50] = np.nan
+    sf.write(tmp_path / "nan.wav", x, 44100, subtype="FLOAT")
+    with pytest.raises(AudioFormatError, match="NaN"):
+        read_audio(tmp_path / "nan.wav")

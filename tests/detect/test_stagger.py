@@ -117,3 +117,27 @@ def test_the_fit_chooses_the_model_the_data_favour(t, bound_samples):
     only = detect_fitted(x, fs=FS, template=coded_template(fs=FS), models=models[:1], windows=win)
     if isinstance(t, BandpassTransducer):
         assert float(np.mean(only.onset - t0)) > 10.0  # the resonator alone is late
+
+
+def test_receivers_that_disagree_on_the_shape_are_refitted():
+    """A transmitter's stagger shape must agree across its receivers (multipath does
+    not): shapes 0.1 apart at sigma 0.02 agree (within the slack); an odd one out of
+    three is refitted at the other two's shape; two that disagree fall back to the
+    resonator."""
+    from rangekit.detect.fitted import ChannelFit, check_shapes
+
+    cov = np.diag([1e-4, 1.0, 4e-4, 4e-4])
+
+    def fit(shape):
+        th = np.array([-3.0, 40000.0, *shape])
+        return ChannelFit(None, np.array([], dtype=object), [], {0: (th, cov)})
+
+    assert check_shapes([fit([-1.0, 0.0]), fit([-1.1, 0.05])]) == [{}, {}]
+    out = check_shapes([fit([-1.0, 0.0]), fit([0.4, -0.3]), fit([-1.02, 0.0])])
+    assert out[0] == {} and out[2] == {}
+    fam, theta = out[1][0]
+    assert fam == "stagger" and theta[2:] == pytest.approx([-1.01, 0.0])
+    assert check_shapes([fit([-1.0, 0.0]), fit([-2.0, -0.3])]) == [
+        {0: "resonator"},
+        {0: "resonator"},
+    ]

@@ -126,8 +126,9 @@ def test_start_given_within_half_a_metre(report, method, measured):
     """The non-oracle rows: the user gives the start only within 0.5 m."""
     row = report.find("tracking error μ", f"with ranging, {method} ν=150, start within 0.5 m")
     assert row.oracle == "" and row.paper == 0.13
-    assert row.measured <= 0.2  # measured 0.133 (Girard), 0.129 (SIR)
-    assert row.measured >= _mu(report, "ranging", method) - 0.02  # a known start helps
+    assert row.measured <= 1.5 * measured  # measured: the parameter
+    # not much better than from the true start (measured: +0.013 Girard, -0.006 SIR)
+    assert row.measured >= _mu(report, "ranging", method) - 0.02
 
 
 def test_sweep_nu_1000(sweep):
