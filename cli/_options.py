@@ -382,6 +382,9 @@ def float_list(
 
 def emit(text: str, output: str | None) -> None:
     """Write results to ``output`` atomically, or to stdout (None or ``-``)."""
+    from rangekit.io.guard import printable
+
+    text = printable(text)  # a non-UTF-8 file name must not break the output
     if output is None or output == "-":
         click.echo(text, nl=not text.endswith("\n"))
     else:

@@ -538,7 +538,9 @@ class SeriesSink:
         """Write the buffered CSV text (one block's rows) and flush it."""
         if not self._buf:
             return
-        text = "".join(self._buf)
+        from rangekit.io.guard import printable
+
+        text = printable("".join(self._buf))
         self._buf.clear()
         if self._file is None:
             try:

@@ -163,11 +163,9 @@ MAX_SIDECAR_FILES = 256
 def _printable(text: str) -> str:
     """``text`` with the undecodable bytes of a file name (surrogate escapes) as ``\\xNN``,
     so that it can be written as UTF-8 (a session name, an error message)."""
-    try:
-        raw = text.encode("utf-8", "surrogateescape")
-    except UnicodeEncodeError:
-        raw = text.encode("utf-8", "backslashreplace")
-    return raw.decode("utf-8", "backslashreplace")
+    from rangekit.io.guard import printable
+
+    return printable(text)
 
 
 def _walk(root: Path) -> Iterable[Path]:

@@ -117,6 +117,21 @@ def check_memory(
         )
 
 
+def _sf_path(p: str | os.PathLike) -> str | bytes:
+    """The path for libsndfile: bytes when the name is not valid UTF-8 (soundfile encodes
+    str names strictly, so a recording named with other bytes could not be opened)."""
+    text = os.fspath(p)
+    try:
+        text.encode("utf-8")
+    except UnicodeEncodeError:
+        return os.fsencode(text)
+    return text
+
+
+def _name(f) -> str:
+    return os.fsdecode(f.name) if isinstance(f.name, bytes) else str(f.name)
+
+
 def _sf():
     import soundfile  # deferred: keeps `import rangekit` cheap
 
@@ -159,7 +174,7 @@ def read_audio(path: str | os.PathLike, *, dtype: str = "auto") -> tuple[np.ndar
     p = _readable(path)
     sf = _sf()
     try:
-        with sf.SoundFile(str(p)) as f:
+        with sf.SoundFile(_sf_path(p)) as f:
             check_memory(p, f.frames, f.channels)
             subtype = f.subtype
             if dtype == "auto":
@@ -209,7 +224,7 @@ def open_audio(path: str | os.PathLike):
     p = _readable(path)
     sf = _sf()
     try:
-        f = sf.SoundFile(str(p))
+        f = sf.SoundFile(_sf_path(p))
     except sf.LibsndfileError as e:
         raise AudioFormatError(f"'{p}' is not a readable audio file ({e.error_string})") from e
     except (RuntimeError, TypeError, ValueError) as e:
@@ -243,10 +258,10 @@ def read_frames(f, start: int, stop: int) -> np.ndarray:
         f.seek(start)
         x = f.read(stop - start, dtype="float64", always_2d=True)
     except (sf.LibsndfileError, RuntimeError) as e:
-        raise AudioFormatError(f"'{f.name}': cannot read samples {start}-{stop} ({e})") from e
+        raise AudioFormatError(f"'{_name(f)}': cannot read samples {start}-{stop} ({e})") from e
     if not np.all(np.isfinite(x)):
-        raise AudioFormatError(f"'{f.name}' holds NaN or infinite samples (from sample {start})")
-    _check_peak(x, f"'{f.name}' (from sample {start})")
+        raise AudioFormatError(f"'{_name(f)}' holds NaN or infinite samples (from sample {start})")
+    _check_peak(x, f"'{_name(f)}' (from sample {start})")
     return x
 
 
@@ -260,7 +275,7 @@ def check_period(paths: Sequence[str | os.PathLike], period_s: float | None) -> 
     for p in paths:
         try:
             _readable(p)  # never opens a FIFO or a device
-            info = sf.info(os.fspath(p))
+            info = sf.info(_sf_path(p))
         except Exception:  # the reader reports it properly
             continue
         if info.frames < period_s * info.samplerate:

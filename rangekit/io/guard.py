@@ -50,6 +50,7 @@ __all__ = [
     "check_output",
     "default_mode",
     "parse_json",
+    "printable",
     "read_capped",
     "read_json_file",
     "regular_file",
@@ -217,6 +218,22 @@ def read_json_file(path: str | os.PathLike, *, limit: int = MAX_JSON_BYTES, what
 
 
 # --- outputs -------------------------------------------------------------------------------
+
+
+def printable(text: str) -> str:
+    """``text`` with undecodable file-name bytes (surrogate escapes) as ``\\xNN``: valid
+    UTF-8 for any output (a recording named with non-UTF-8 bytes, in a table or a
+    message)."""
+    try:
+        text.encode("utf-8")
+        return text
+    except UnicodeEncodeError:
+        pass
+    try:
+        raw = text.encode("utf-8", "surrogateescape")
+    except UnicodeEncodeError:
+        raw = text.encode("utf-8", "backslashreplace")
+    return raw.decode("utf-8", "backslashreplace")
 
 
 def _same(a: os.stat_result, b: os.stat_result) -> bool:

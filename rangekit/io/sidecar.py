@@ -26,10 +26,10 @@ def write_text_atomic(path: str | os.PathLike, text: str) -> None:
     folder, renamed at the end, removed on failure; a link, a directory or a device at
     ``path`` is refused (InvalidParameterError), an unwritable one is InputFileError.
     """
-    from rangekit.io.guard import atomic_output
+    from rangekit.io.guard import atomic_output, printable
 
     with atomic_output(path, text=True) as f:
-        f.write(text)
+        f.write(printable(text))
 
 
 def write_json(path: str | os.PathLike, obj: Any) -> None:

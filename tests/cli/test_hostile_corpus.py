@@ -447,6 +447,27 @@ def _corpus() -> list[Case]:
 
         cases.append(Case(f"batch-files-{label}", setup, ["batch", "arch", "-q", "-j", "1"],
                           {8, 9}, (), None, batch=True))  # fmt: skip
+    # Odd names: spaces, a leading dash, non-UTF-8 bytes, for good and bad recordings.
+    odd = ["with space.wav", "-dash.wav", os.fsdecode(b"caf\xe9.wav"), "tab\there.wav"]
+    for i, fname in enumerate(odd):
+        shown = fname.encode("utf-8", "surrogateescape").decode("utf-8", "replace")
+        for good in (True, False):
+
+            def setup(d, fname=fname, good=good):
+                if good:
+                    shutil.copy(REC, d / fname)
+                else:
+                    (d / fname).write_text("junk")
+
+            path = f"./{fname}"
+            tag = "good" if good else "junk"
+            for argv in (["range", path], ["detect", path]):
+                names = () if "\ufffd" in shown else (fname,)
+                cases.append(Case(f"name{i}-{tag}-{argv[0]}", setup, argv,
+                                  {0} if good else {4}, names, "out.txt"))  # fmt: skip
+            argv = ["batch", ".", "-q", "-j", "1"] + (["-o", "r.csv"] if good else [])
+            cases.append(Case(f"name{i}-{tag}-batch", setup, argv,
+                              {0} if good else {9}, (), None, batch=not good))  # fmt: skip
     return cases
 
 
