@@ -88,11 +88,16 @@ def test_errors_name_the_file_and_the_field(tmp_path, path, value, needle):
         parse_rig(_edit(path, value), name="rig.json")
     assert str(e.value).startswith("rig.json: ") and needle in str(e.value)
     p = tmp_path / "rig.json"
-    p.write_text(json.dumps(_edit(path, value)).replace("NaN", "NaN"))
+    p.write_text(json.dumps(_edit(path, value)))
     with pytest.raises(InputFileError) as e:
         read_rig(p)
     msg = str(e.value)
-    assert "\n" not in msg and f"'{p}' is not a valid rig file: " in msg and needle in msg
+    assert "\n" not in msg
+    if isinstance(value, float) and value != value:
+        # NaN is not JSON: the guarded reader refuses the file before the rig is parsed.
+        assert f"'{p}'" in msg and "NaN" in msg
+    else:
+        assert f"'{p}' is not a valid rig file: " in msg and needle in msg
 
 
 def test_missing_and_non_json_files(tmp_path):
