@@ -20,10 +20,10 @@ gives the log Bayes factor of the stagger's two further parameters, shared by th
 two extra parameters each lower the stagger's chi-square by 2 on average when the
 resonator is right; ``N`` the samples fitted; the median so that one stuck window does
 not decide), and the posterior probability of the stagger model ``w = 1 / (1 +
-exp(-L))``. The model with ``w`` or ``1 - w`` above one half times every arrival of the
-group (held at its running estimate after ``N_FREE_FITS`` free fits, pooled as in
-:func:`rangekit.detect.pathfit.pool_fits`; the stagger's free fits refitted at the
-group's robust estimate).
+exp(-L))``. The stagger model (where ``w >= P_STAGGER``) or else the resonator times
+every arrival of the group (held at its running estimate after ``N_FREE_FITS`` free
+fits, pooled as in :func:`rangekit.detect.pathfit.pool_fits`; the stagger's free fits
+refitted at the group's robust estimate).
 
 **Sigma.** Besides the chosen model's Cramér-Rao bound (and misfit term,
 :func:`rangekit.detect.matched._fit_sigma`), each onset's variance gets the model
@@ -69,9 +69,13 @@ from rangekit.types import Arrivals, flag_bit
 
 __all__ = ["N_TEST", "ChannelFit", "check_shapes", "detect_fitted", "fit_channel"]
 
+#: The stagger model times a group only at this posterior probability or more (the
+#: resonator, two parameters fewer, is the default; below it the resonator's onsets carry
+#: the model-choice variance ``w_stagger d^2``).
+P_STAGGER = 0.9
 #: The comparison's fits stop within 0.05 noise variances of their optimum (its
 #: evidence is counted in units of several).
-TEST_FIT = {"tol": 0.05, "max_iter": 15}
+TEST_FIT = {"tol": 1e-3, "max_iter": 30}
 #: A stagger fit is also tried without the resonator fit's paths weaker than this
 #: fraction of its strongest (paths a resonator adds to mimic a longer response).
 STRONG = 0.5
@@ -185,7 +189,7 @@ class _Group:
         # fit stuck in a poor optimum must not decide for the group.
         logbf = 0.5 * (len(d) * float(np.median(d)) - 2.0 * n_free) - math.log(max(n, 2))
         w_s = 1.0 / (1.0 + math.exp(-max(min(logbf, 50.0), -50.0)))
-        self.family = "stagger" if w_s > 0.5 else "resonator"
+        self.family = "stagger" if w_s > P_STAGGER else "resonator"
         self.w = w_s if self.family == "stagger" else 1.0 - w_s
 
     def clearly_resonator(self) -> bool:
@@ -352,11 +356,9 @@ def fit_channel(
                 starts = [start] + ([start[strong]] if not strong.all() else [])
             fs_ = None
             for st_ in starts:
-                # The resonator fit's paths and no others (the comparison's), so no path
-                # scans: a test costs a few Levenberg-Marquardt steps.
                 cand = _fit_one(
                     x, lag_s, stag_model, sigma, [] if len(starts) > 1 else g.acc["stagger"],
-                    q0, {**kw, "max_paths": len(st_), **TEST_FIT}, low, theta=th, start=st_,
+                    q0, {**kw, **TEST_FIT}, low, theta=th, start=st_,
                 )  # fmt: skip
                 if cand is not None and (
                     fs_ is None or cand.chi2 + pen * cand.n_paths < fs_.chi2 + pen * fs_.n_paths
@@ -378,7 +380,7 @@ def fit_channel(
                 d = max(d, 0.0)  # the stagger nests the resonator to 1e-4: worse = stuck
                 free = fr.n_par > 3 * fr.n_paths and fs_.n_par > 3 * fs_.n_paths
                 g.tests.append((d, free, fs_.onset - fr.onset, n_seg))
-            if len(g.tests) >= N_TEST or (g.tests and g.clearly_resonator()):
+            if len(g.tests) >= N_TEST or (len(g.tests) >= 2 and g.clearly_resonator()):
                 g.decide(force.get(key) if force else None)
         elif g.family == "stagger":
             got["stagger"] = _fit_one(x, lag, stag_model, sigma, g.acc["stagger"], q0, kw, low)

@@ -88,6 +88,8 @@ K_ADD = 6.0
 #: residual structure is model error (a transducer not quite two equal resonators), and
 #: paths fitted to it would bend the first path.
 REL_ADD = 0.1
+#: Skip the two-path scan of fits started from given paths.
+SKIP_SCAN = True
 #: Most paths fitted in one segment.
 MAX_PATHS = 4
 #: Levenberg-Marquardt iterations per fit.
@@ -806,8 +808,10 @@ def _paths(
     # A reflection within about a resolution merges with the direct path into one wider
     # path (of higher Q): try two paths wherever Q is free (the few fits that set a
     # group's Q), and where a held Q leaves the one-path fit short.
+    # (Not when the paths were given: they come from a fit that scanned already.)
     if (
         max_paths >= 2
+        and (u_start is None or not SKIP_SCAN)
         and len(st.u) == 1
         and (fit or _misfit_z(st, sigma, 3 + n_theta) > Z_TWO_PATHS)
     ):

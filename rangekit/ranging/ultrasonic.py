@@ -371,9 +371,12 @@ def range_oneway(
         calibration's latency absorbs).
     fit_transducers : bool
         Time each arrival by fitting the drive through two resonators of unknown Q and f0,
-        with overlapping reflections (:mod:`rangekit.detect.pathfit`), so that the range
-        does not depend on knowing the transducers (default True; ``docs/theory/
-        ultrasonic.md``). False: the template of ``tx`` and ``rx`` is assumed right.
+        with overlapping reflections (:mod:`rangekit.detect.pathfit`), or through two
+        elements of two stagger-tuned resonators each (:mod:`rangekit.detect.stagger`),
+        whichever the recording favours per transmitter and receiver
+        (:mod:`rangekit.detect.fitted`), so that the range does not depend on knowing the
+        transducers (default True; ``docs/theory/ultrasonic.md``). False: the template of
+        ``tx`` and ``rx`` is assumed right.
     pool : bool
         With ``fit_transducers``: pool the ``(Q, f0)`` estimates of every window of one
         receiver and transmitter (``tx_ids``; all windows of the receiver without them)
