@@ -607,16 +607,7 @@ def _anchors_compiled(
     if beep.n_bursts == 1:
         return [(int(v), 1) for v in c.tolist()]
     out = _edge_kernels.call(
-        "anchors",
-        np.ascontiguousarray(c, dtype=np.int64),
-        np.ascontiguousarray(cs, dtype=np.float64),
-        int(n_e),
-        int(hop),
-        max(1, n_win // hop),
-        max(1, int((beep.burst_s * fs - 2 * n_win) / hop)),
-        float(beep.spacing_s * fs),
-        int(beep.n_bursts),
-        float(MIN_RISE_DB),
+        "anchors", *_anchor_args(c, cs, n_e, hop=hop, n_win=n_win, beep=beep, fs=fs)
     )
     return [(int(a), int(r)) for a, r in out.tolist()]
 
