@@ -245,14 +245,12 @@ def test_range_echo(x, fs, lo, hi, t):
     _quietly(range_echo, x, fs=fs, min_range_m=lo, max_range_m=hi, temp_c=t)
 
 
-@pytest.mark.xfail(
-    strict=True,
-    raises=IndexError,
-    reason="known bug for the detection engineers: range_echo on a recording shorter than "
-    "one period_s raises IndexError (rangekit/ranging/ultrasonic.py, the windows loop); "
-    "the CLI and batch refuse such files first (rangekit.io.audio.check_period)",
-)
 def test_range_echo_shorter_than_one_period():
-    from rangekit.ranging.ultrasonic import range_echo
+    """Was an IndexError in the windows loop (the CLI and batch refuse such files first,
+    rangekit.io.audio.check_period); now the library says it too."""
+    from rangekit.errors import IncompatibleInputError
+    from rangekit.ranging.ultrasonic import range_echo, range_oneway
 
-    _quietly(range_echo, np.zeros(2), fs=192000.0, period_s=1.0)
+    for fn in (range_echo, range_oneway):
+        with pytest.raises(IncompatibleInputError, match="shorter than half a period"):
+            fn(np.zeros(2), fs=192000.0, period_s=1.0)

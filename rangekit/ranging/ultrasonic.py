@@ -153,6 +153,11 @@ def window_starts(n_samples: int, *, fs: float, period_s: float | None) -> np.nd
     starts = starts[starts < n_samples]
     stops = np.minimum(np.append(starts[1:], n_samples), n_samples)
     keep = (stops - starts) >= 0.5 * per
+    if not keep.any():
+        raise IncompatibleInputError(
+            f"the recording ({n_samples / fs:g} s) is shorter than half a period "
+            f"({period_s:g} s): no window to range"
+        )
     return np.stack([starts[keep], stops[keep]], axis=1)
 
 
