@@ -426,6 +426,16 @@ def _refine_py(
     return res
 
 
+def _fit_summary(r, m: int, n_cols: int) -> tuple[float, float, float]:
+    """``(tau, sigma, snr_db)`` of a :func:`_refine_py` result ``r`` over ``m`` samples with
+    ``n_cols`` nuisance columns (as ``refine.fit_edge`` reports them)."""
+    rss, tau, amp, perp2 = r[2], r[1], math.hypot(r[3], r[4]), r[5]
+    noise_var = max(rss / max(m - n_cols - 1, 1), 1e-30)
+    info = perp2 / noise_var
+    sigma = 1.0 / math.sqrt(info) if info > 0 else math.inf
+    return tau, sigma, 10.0 * math.log10(max(0.5 * amp * amp / noise_var, 1e-30))
+
+
 def _anchors_py(
     cs_pts: np.ndarray,
     cs: np.ndarray,
@@ -903,13 +913,10 @@ def _beeps_py(
                     if r[0] != 1.0:
                         failed = True
                         break
-                    rss, tau, amp, perp2 = r[2], r[1], math.hypot(r[3], r[4]), r[5]
-                    dof = max(m - n_cols_dc - 1, 1)
-                    noise_var = max(rss / dof, 1e-30)
-                    info = perp2 / noise_var
+                    tau, s_k, snr_k = _fit_summary(r, m, n_cols_dc)
                     on[k] = tau + r0
-                    sg[k] = 1.0 / math.sqrt(info) if info > 0 else math.inf
-                    snr[k] = 10.0 * math.log10(max(0.5 * amp * amp / noise_var, 1e-30))
+                    sg[k] = s_k
+                    snr[k] = snr_k
                     fst[k] = stats[k, jb]
                     have[k] = True
                     continue
@@ -950,13 +957,10 @@ def _beeps_py(
             if r[0] != 1.0:
                 failed = True
                 break
-            rss, tau, amp, perp2 = r[2], r[1], math.hypot(r[3], r[4]), r[5]
-            dof = max(m - n_cols - 1, 1)
-            noise_var = max(rss / dof, 1e-30)
-            info = perp2 / noise_var
+            tau, s_k, snr_k = _fit_summary(r, m, n_cols)
             on[k] = tau + offs[k]
-            sg[k] = 1.0 / math.sqrt(info) if info > 0 else math.inf
-            snr[k] = 10.0 * math.log10(max(0.5 * amp * amp / noise_var, 1e-30))
+            sg[k] = s_k
+            snr[k] = snr_k
             fst[k] = stats[k, jb]
             have[k] = True
         if failed:
@@ -1078,6 +1082,7 @@ _HELPERS = (
     _fir_py,
     _edge_stat_py,
     _refine_py,
+    _fit_summary,
     _widen_py,
     _first_edge_py,
     _median_py,
