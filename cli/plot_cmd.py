@@ -282,9 +282,7 @@ def _read_truth(text: str | None):
     except ValueError:
         pass
     else:
-        import math as _m
-
-        if not (_m.isfinite(v) and v >= 0):
+        if not (math.isfinite(v) and v >= 0):
             raise click.BadParameter(
                 f"{text!r} must be a distance >= 0 in metres or a JSON file", param_hint="--truth"
             )

@@ -54,21 +54,6 @@ class Setup:
     tx_order: tuple[int, ...] | None = None
     signal: dict[str, Any] | None = None
 
-    def describe(self) -> str:
-        """The values it gives, for the stderr line of ``range``."""
-        parts = []
-        if self.self_distance_m is not None:
-            parts.append("self-distance " + ",".join(f"{v:g}" for v in self.self_distance_m) + " m")
-        if self.temp_c is not None:
-            parts.append(f"temperature {self.temp_c:g} C")
-        if self.period_s is not None:
-            parts.append(f"period {self.period_s:g} s")
-        if self.latency_s is not None:
-            parts.append(f"latency {self.latency_s:g} s")
-        if self.tx_order is not None:
-            parts.append("tx-order " + ",".join(str(t) for t in self.tx_order))
-        return ", ".join(parts)
-
 
 def _number(obj: dict, key: str, name: str, lo: float, hi: float) -> float | None:
     v = obj.get(key)
@@ -145,13 +130,13 @@ def find_setup(recordings: list[str | os.PathLike]) -> Setup | None:
         return None
     names = [p.name for p in paths]
     folder = {p.parent.resolve() for p in paths}
-    for cand in _candidates(paths):
-        try:
-            if not cand.is_file() or cand.stat().st_size > 16 * 2**20:
-                continue
-            from rangekit.io.sidecar import read_json
+    from rangekit.io.sidecar import read_json
 
-            obj = read_json(cand)
+    for cand in _candidates(paths):
+        if not cand.exists():
+            continue
+        try:
+            obj = read_json(cand)  # guarded: regular file, size cap, JSON limits
         except (OSError, RangekitError):
             continue
         if not isinstance(obj, dict) or "setup" not in obj:

@@ -62,7 +62,6 @@ def pose_covariance(
     sig = np.broadcast_to(np.asarray(sigma_m, dtype=np.float64), d.shape)
     if not np.all(np.isfinite(sig)) or np.any(sig < 0):
         raise InvalidParameterError("sigma_m must be finite and >= 0")
-    base = solve_pose(tx, d, **solve_kw)
     jac = np.zeros((3, d.size))
     for k in range(d.size):
         step = np.zeros(d.size)
@@ -72,7 +71,6 @@ def pose_covariance(
         dphi = np.angle(np.exp(1j * (hi.phi_rad - lo.phi_rad)))
         jac[:, k] = [hi.x_m - lo.x_m, hi.y_m - lo.y_m, dphi]
         jac[:, k] /= 2.0 * STEP_M
-    del base
     c = jac @ np.diag(sig.reshape(-1) ** 2) @ jac.T
     return 0.5 * (c + c.T)
 

@@ -173,10 +173,14 @@ def range_beepbeep(
 WITHHELD = "withheld"
 
 
+def _doubtful(flags) -> tuple[str, ...]:
+    return tuple(f for f in flags if f not in INFO_FLAGS and f != WITHHELD)
+
+
 def doubtful_flags(r) -> tuple[str, ...]:
     """The flags of ``r`` (a Range, a ToF, anything with ``flags``) that make it doubtful:
     all but :data:`rangekit.types.INFO_FLAGS`."""
-    return tuple(f for f in r.flags if f not in INFO_FLAGS and f != WITHHELD)
+    return _doubtful(r.flags)
 
 
 def withhold_doubtful(row: dict) -> bool:
@@ -196,9 +200,7 @@ def withhold_doubtful(row: dict) -> bool:
     """
     d = row.get("distance_m")
     flags = list(row.get("flags") or ())
-    if d is None or not math.isfinite(d) or WITHHELD in flags:
-        return False
-    if not any(f not in INFO_FLAGS for f in flags):
+    if d is None or not math.isfinite(d) or WITHHELD in flags or not _doubtful(flags):
         return False
     row.update(distance_m=None, sigma_m=None, flags=[*flags, WITHHELD])
     return True

@@ -74,11 +74,9 @@ def detect_channel(
                 f"'{ch.source}': found {found} of probe '{probe.name}' but expected "
                 f"{expected} (one per device); check that this is the probe that was played"
             )
-        hint = ""
-        if method != "template":
-            # Only on failure: the individual bursts tell whether their spacing is the problem.
-            cand = find_bursts(ch.x, fs=ch.fs, beep=beep)
-            hint = _spacing_hint(cand.onset, beep=beep, fs=ch.fs)
+        # Only on failure: the individual bursts tell whether their spacing is the problem.
+        cand = find_bursts(ch.x, fs=ch.fs, beep=beep)
+        hint = _spacing_hint(cand.onset, beep=beep, fs=ch.fs)
         found = "no beep" if len(arr) == 0 else f"{len(arr)} beep(s)"
         raise DetectionError(
             f"'{ch.source}': found {found} but expected {expected} (one per device){hint}"
