@@ -7,6 +7,7 @@ from rangekit_cli._options import (
     FiniteRange,
     beep_options,
     debug_option,
+    detail,
     detector_option,
     make_beep,
     refuse_beep_options,
@@ -15,6 +16,7 @@ from rangekit_cli._options import (
     template_option,
     ultrasonic_kwargs,
     ultrasonic_options,
+    verbosity_options,
 )
 
 
@@ -87,6 +89,7 @@ def parse_recording(text: str, default_m: float | None) -> tuple[list[str], floa
     metavar="CAL.json",
     help="Where to write the calibration (JSON; written only when the fit is accepted).",
 )
+@verbosity_options
 @debug_option
 def calibrate_cmd(
     recordings,
@@ -129,6 +132,8 @@ def calibrate_cmd(
     probe = load_template(template)
     recs = [parse_recording(r, distance) for r in recordings]
     c = speed_of_sound_m_s(temp_c) if speed is None else speed
+    sig = f"template '{template}'" if probe is not None else f"detector {detector}"
+    detail(f"rangekit: calibrate: {scheme}, {sig}, {len(recs)} recordings, c = {c:.2f} m/s")
     if scheme == "beepbeep":
         from rangekit_cli.range_cmd import _refuse_ultrasonic_options
 

@@ -3,7 +3,14 @@
 from __future__ import annotations
 
 import click
-from rangekit_cli._options import FiniteRange, beep_options, debug_option, make_beep
+from rangekit_cli._options import (
+    FiniteRange,
+    beep_options,
+    debug_option,
+    make_beep,
+    note,
+    verbosity_options,
+)
 
 
 @click.group("design")
@@ -24,6 +31,7 @@ def design():
 @click.option(
     "-o", "--output", type=click.Path(dir_okay=False), required=True, help="WAV file to write."
 )
+@verbosity_options
 @debug_option
 def design_beep(amplitude, fs, output, **beep_kw):
     """The rangekit beep as a 16-bit PCM WAV to copy to every phone.
@@ -46,11 +54,10 @@ def design_beep(amplitude, fs, output, **beep_kw):
     check_beep_fits(beep, fs=rate, what="--fs")
     x = beep_continuous(np.arange(int(np.ceil(beep.duration_s * rate))) / rate, beep=beep)
     write_audio(output, x, fs=rate, subtype="PCM_16")
-    click.echo(
+    note(
         f"wrote {output}: {beep.n_bursts} x {beep.f_hz:g} Hz bursts of "
         f"{beep.burst_s * 1e3:.1f} ms, "
-        f"{beep.spacing_s * 1e3:.1f} ms apart, {beep.duration_s:.3f} s at {rate:g} Hz",
-        err=True,
+        f"{beep.spacing_s * 1e3:.1f} ms apart, {beep.duration_s:.3f} s at {rate:g} Hz"
     )
 
 
@@ -83,6 +90,7 @@ def design_beep(amplitude, fs, output, **beep_kw):
 @click.option(
     "-o", "--output", type=click.Path(dir_okay=False), required=True, help="WAV file to write."
 )
+@verbosity_options
 @debug_option
 def design_barker(code, carrier, cycles_per_bit, amplitude, fs, output):
     """A Barker-coded BPSK burst (Kim & Kim 2013) as a 16-bit PCM WAV.
@@ -108,10 +116,9 @@ def design_barker(code, carrier, cycles_per_bit, amplitude, fs, output):
     burst = CodedBurst(b.code, b.carrier_hz, b.cycles_per_bit, amplitude, fs)
     write_audio(output, burst_waveform(burst), fs=fs, subtype="PCM_16")
     chips = "".join("+" if c > 0 else "-" for c in burst.code)
-    click.echo(
+    note(
         f"wrote {output}: code {chips} on {burst.carrier_hz:g} Hz, {burst.cycles_per_bit} "
-        f"cycles per chip, {burst.duration_s * 1e6:.1f} us at {fs:g} Hz",
-        err=True,
+        f"cycles per chip, {burst.duration_s * 1e6:.1f} us at {fs:g} Hz"
     )
 
 
@@ -166,6 +173,7 @@ def design_barker(code, carrier, cycles_per_bit, amplitude, fs, output):
     required=True,
     help="File to write (WAV; FLAC, ... by the suffix).",
 )
+@verbosity_options
 @debug_option
 def design_sweep(f0, f1, duration, fs, fade, amplitude, output):
     """A linear sweep (chirp) from --f0 to --f1 as a 16-bit PCM WAV.
@@ -200,9 +208,8 @@ def design_sweep(f0, f1, duration, fs, fade, amplitude, output):
     write_audio(output, probe.samples, fs=fs, subtype="PCM_16")
     lo, hi = probe.band_hz()
     fade_s = min(DEFAULT_FADE_S, duration / 10.0) if fade is None else fade
-    click.echo(
+    note(
         f"wrote {output}: linear sweep {f0:g}-{f1:g} Hz, {duration:g} s "
         f"({len(probe.samples)} samples at {fs:g} Hz), fades {fade_s * 1e3:.1f} ms, "
-        f"99.9 % of the energy in {lo / 1e3:.2f}-{hi / 1e3:.2f} kHz",
-        err=True,
+        f"99.9 % of the energy in {lo / 1e3:.2f}-{hi / 1e3:.2f} kHz"
     )

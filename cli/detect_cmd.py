@@ -6,6 +6,7 @@ import click
 from rangekit_cli._options import (
     beep_options,
     debug_option,
+    detail,
     detector_option,
     emit,
     format_option,
@@ -14,6 +15,7 @@ from rangekit_cli._options import (
     output_option,
     refuse_beep_options,
     template_option,
+    verbosity_options,
 )
 
 #: Options that only apply to the matched filter (--template or --detector template).
@@ -53,6 +55,7 @@ _TEMPLATE_OPTIONS = {
 @beep_options
 @format_option
 @output_option
+@verbosity_options
 @debug_option
 def detect_cmd(files, detector, template, expected, min_separation, weighting, fmt, output,
                **beep_kw):  # fmt: skip
@@ -100,6 +103,9 @@ def detect_cmd(files, detector, template, expected, min_separation, weighting, f
     kw = {"min_separation_s": min_separation} if min_separation is not None else {}
     if weighting is not None:
         kw["weighting"] = weighting
+    sig = f"template '{template}'" if probe is not None else "the beep"
+    exp = f", at most {expected} per channel" if expected is not None else ""
+    detail(f"rangekit: detect: {sig} by {method}{exp}")
     rows, empty = [], []
     for f in files:
         x, fs = read_audio(f)

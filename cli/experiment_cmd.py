@@ -6,7 +6,14 @@ import time
 from pathlib import Path
 
 import click
-from rangekit_cli._options import debug_option, emit, format_choice, output_option
+from rangekit_cli._options import (
+    debug_option,
+    emit,
+    format_choice,
+    note,
+    output_option,
+    verbosity_options,
+)
 
 #: Experiment name -> module (imported only when run). The module provides
 #: ``run(*, trials, seed, plots_dir) -> ExperimentReport`` and ``DEFAULT_TRIALS``.
@@ -47,6 +54,7 @@ EXPERIMENTS: dict[str, str] = {
     "parent folder must exist).",
 )
 @output_option
+@verbosity_options
 @debug_option
 def experiment_cmd(name, trials, seed, fmt, plots, output):
     """Reproduce a paper's experiment by simulation: its numbers beside rangekit's.
@@ -70,7 +78,7 @@ def experiment_cmd(name, trials, seed, fmt, plots, output):
     mod = _load(name)
     n = mod.DEFAULT_TRIALS if trials is None else trials
     plots_dir = None if plots is None else _plots_dir(plots)
-    click.echo(f"running {name}: {n} trial{'s' if n != 1 else ''}, seed {seed} ...", err=True)
+    note(f"running {name}: {n} trial{'s' if n != 1 else ''}, seed {seed} ...")
     t0 = time.perf_counter()
     report = mod.run(trials=n, seed=seed, plots_dir=plots_dir)
     wall = time.perf_counter() - t0
@@ -79,7 +87,7 @@ def experiment_cmd(name, trials, seed, fmt, plots, output):
         text += "\n"
     emit(text, output)
     where = f"; figures in {plots_dir}" if plots_dir is not None else ""
-    click.echo(f"{name}: done in {wall:.1f} s{where}", err=True)
+    note(f"{name}: done in {wall:.1f} s{where}")
 
 
 def _load(name: str):

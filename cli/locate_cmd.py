@@ -5,7 +5,15 @@ from __future__ import annotations
 import math
 
 import click
-from rangekit_cli._options import FiniteRange, debug_option, emit, format_choice, output_option
+from rangekit_cli._options import (
+    FiniteRange,
+    debug_option,
+    emit,
+    format_choice,
+    output_option,
+    verbosity_options,
+    warn,
+)
 
 #: Output fields, in order.
 FIELDS = ("x_m", "y_m", "heading_deg", "method_used", "residual_m")
@@ -85,6 +93,7 @@ DISTANCE_COLUMNS = ("tx", "d1_m", "d2_m", "d3_m")
 )
 @format_choice(("table", "json"), "table")
 @output_option
+@verbosity_options
 @debug_option
 def locate_cmd(beacons, ranges, sigma, distances, tx_items, method, d_th, r_r, fmt, output):
     """One robot pose from the distances of ceiling transmitters to its three receivers.
@@ -258,10 +267,9 @@ def _read_ranges(path):
         channel, dist, sig = tab["channel"], tab["distance_m"], tab["sigma_m"]
     r = uhl_inputs(tx, channel, dist, sig, what=name)
     if r.dropped:
-        click.echo(
+        warn(
             f"rangekit: {name}: transmitter(s) {', '.join(map(str, r.dropped))} left out "
-            "(not heard on every receiver)",
-            err=True,
+            "(not heard on every receiver)"
         )
     return r.ids, r.distances_m.tolist(), r.sigma_m.tolist(), name
 

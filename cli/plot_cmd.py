@@ -12,12 +12,14 @@ from rangekit_cli._options import (
     detector_option,
     load_template,
     make_beep,
+    note,
     refuse_beep_options,
     speed_of_sound_option,
     temperature_option,
     template_option,
     ultrasonic_kwargs,
     ultrasonic_options,
+    verbosity_options,
 )
 
 
@@ -64,7 +66,7 @@ def _read_channel(recording: str, channel: int):
 
 
 def _done(output: str, what: str) -> None:
-    click.echo(f"wrote {output} ({what})", err=True)
+    note(f"wrote {output} ({what})")
 
 
 @click.group("plot")
@@ -98,6 +100,7 @@ def _window_option(name: str, dest: str, help: str):
 @_window_option("--fmin", "fmin_hz", "Lowest frequency to show, Hz [0].")
 @_window_option("--fmax", "fmax_hz", "Highest frequency to show, Hz [fs/2].")
 @_output
+@verbosity_options
 @debug_option
 def spectrogram_cmd(
     recording, channel, detector, template, t0_s, t1_s, fmin_hz, fmax_hz, output, **beep_kw
@@ -174,6 +177,7 @@ def spectrogram_cmd(
 @speed_of_sound_option()
 @ultrasonic_options
 @_output
+@verbosity_options
 @debug_option
 def matched_cmd(recording, scheme, channel, window, temp_c, speed, output, **kw):
     """Matched-filter envelope of one channel and window, with the chosen first path.
@@ -227,6 +231,7 @@ def matched_cmd(recording, scheme, channel, window, temp_c, speed, output, **kw)
     "line counts the ranges within 2 sigma of it.",
 )
 @_output
+@verbosity_options
 @debug_option
 def ranges_cmd(series, truth, output):
     """Range time series with ±1 sigma and ±2 sigma bands, one line per series.
@@ -332,6 +337,7 @@ def _read_truth(text: str | None):
     help="A 2-sigma covariance ellipse every N rows of each target (0: none).",
 )
 @_output
+@verbosity_options
 @debug_option
 def track_cmd(track, map_path, truth, ellipses, output):
     """Trajectories with 2-sigma covariance ellipses over the floor plan.
@@ -366,6 +372,7 @@ def track_cmd(track, map_path, truth, ellipses, output):
     help="One curve per value of this column (e.g. scheme) [one curve].",
 )
 @_output
+@verbosity_options
 @debug_option
 def cdf_cmd(results, by, output):
     """Empirical CDF of the absolute range error across a batch, median and p90 in the legend.

@@ -8,11 +8,15 @@ from rangekit_cli._options import (
     beep_options,
     clock_ppm_option,
     debug_option,
+    detail,
     detector_option,
     emit,
     float_list,
     format_option,
+    is_verbose,
     make_beep,
+    note,
+    note_after,
     output_option,
     refuse_beep_options,
     self_distance_option,
@@ -21,6 +25,8 @@ from rangekit_cli._options import (
     template_option,
     ultrasonic_kwargs,
     ultrasonic_options,
+    verbosity_options,
+    warn,
 )
 
 calibration_option = click.option(
@@ -124,6 +130,7 @@ calibration_option = click.option(
 )
 @format_option
 @output_option
+@verbosity_options
 @debug_option
 def range_cmd(
     files,
@@ -198,6 +205,9 @@ def range_cmd(
     cal = _read_calibration(calibration, scheme)
     if not no_setup:
         self_distance, temp_c = _apply_setup(files, scheme, self_distance, temp_c, speed, cal, kw)
+    else:
+        detail("rangekit: setup: not read (--no-setup)")
+    _describe(scheme, detector, template, calibration, self_distance, temp_c, speed)
     if series and scheme != "beepbeep" and (probe is not None or cal is not None):
         raise click.UsageError(
             "--template and --calibration apply to --series with --scheme beepbeep only"
@@ -320,10 +330,9 @@ def _clock_rate(sink, items, text: str, meta: dict, *, c, sd, clock_ppm):
         rej = f", {rates.n_rejected} rejected" if rates.n_rejected else ""
         for i in range(1, len(rates.ppm)):
             rate = format_pm(rates.ppm[i], rates.sigma_ppm[i], sign=True)
-            click.echo(
+            note(
                 f"rangekit: clock rate vs device 0: device {i} {rate} ppm "
-                f"({rates.n_exchanges} exchanges over {rates.span_s:.1f} s{rej})",
-                err=True,
+                f"({rates.n_exchanges} exchanges over {rates.span_s:.1f} s{rej})"
             )
     return iter(fixed)
 
@@ -342,6 +351,19 @@ _ULTRASONIC_KEYS = (
 )
 
 
+def _describe(scheme, detector, template, calibration, self_distance, temp_c, speed) -> None:
+    """--verbose: one stderr line with what the run uses."""
+    if not is_verbose():
+        return
+    what = f"template '{template}'" if template is not None else f"detector {detector}"
+    if scheme != "beepbeep" and template is None:
+        what = "coded burst (--code)"
+    air = f"speed of sound {speed:g} m/s" if speed is not None else f"temperature {temp_c:g} C"
+    cal = f", calibration '{calibration}'" if calibration is not None else ""
+    sd = f", self-distance {self_distance}" if scheme == "beepbeep" else ""
+    detail(f"rangekit: range: scheme {scheme}, {what}, {air}{sd}{cal}")
+
+
 def _refuse_ultrasonic_options(kw: dict) -> None:
     for k in _ULTRASONIC_KEYS:
         if kw.pop(k, None) is not None:
@@ -356,7 +378,11 @@ def _apply_setup(files, scheme, self_distance, temp_c, speed, cal, kw):
     from rangekit.io.setup import find_setup
 
     setup = find_setup(files)
-    if setup is None or setup.scheme != scheme:
+    if setup is None:
+        detail("rangekit: setup: no sidecar beside the recordings names exactly them")
+        return self_distance, temp_c
+    if setup.scheme != scheme:
+        detail(f"rangekit: setup: '{setup.path}' is for --scheme {setup.scheme}, not used")
         return self_distance, temp_c
     ctx = click.get_current_context()
 
@@ -385,7 +411,7 @@ def _apply_setup(files, scheme, self_distance, temp_c, speed, cal, kw):
         took.append(f"--temperature {setup.temp_c:g}")
     if took:
         # Said after the results (an error stays one line): rangekit_cli.main prints notes.
-        ctx.meta.setdefault("rangekit.notes", []).append(
+        note_after(
             f"rangekit: used the setup in '{setup.path}': {' '.join(took)} (--no-setup to "
             "ignore it)"
         )
@@ -510,11 +536,11 @@ class SeriesSink:
 
     def progress(self, done_s: float, total_s: float) -> None:
         """Library progress callback: flush the block's CSV rows, advance the progress line."""
-        from rangekit_cli._progress import Progress
+        from rangekit_cli._options import progress
 
         self.flush()
         if self._bar is None:
-            self._bar = Progress(total_s, "range --series", unit="s")
+            self._bar = progress(total_s, "range --series", unit="s")
         self._bar.update(done_s - self._bar.done)
 
     def _open(self) -> None:
@@ -648,15 +674,13 @@ class SeriesSink:
         elif self.fmt == "json":
             emit(format_rows(collected, self.fields, "json", meta=meta, key="ranges"), self.output)
         if n_bad and self.scheme == "beepbeep":
-            click.echo(
+            warn(
                 f"rangekit: {n_bad} of {n_items} exchanges failed detection (empty distance, "
-                f"flag 'detection'); first: {first_error}",
-                err=True,
+                f"flag 'detection'); first: {first_error}"
             )
         elif n_bad:
-            click.echo(
+            warn(
                 f"rangekit: {n_bad} of {n_rows} (window, channel) rows without a detection "
-                "(empty distance: nothing in range)",
-                err=True,
+                "(empty distance: nothing in range)"
             )
         _report_withheld(withheld, n_rows, meta.get("files", ()))

@@ -13,8 +13,10 @@ from rangekit_cli._options import (
     float_list,
     load_template,
     make_beep,
+    note,
     refuse_beep_options,
     temperature_option,
+    verbosity_options,
 )
 
 
@@ -180,6 +182,7 @@ def _parse_point(text: str, name: str) -> list[float]:
 @click.option(
     "-o", "--output", type=click.Path(dir_okay=False), required=True, help="WAV file to write."
 )
+@verbosity_options
 @debug_option
 def synth_beepbeep(
     distance, positions, self_distance, snr_db, no_noise, noise, room, absorption, order,
@@ -308,9 +311,7 @@ def synth_beepbeep(
     truth["files"] = [f.name for f in files]
     write_json(out.with_suffix(".json"), truth)
     pairs = ", ".join(f"{p['a']}-{p['b']}: {p['distance_m']:.4f} m" for p in truth["pairs"])
-    click.echo(
-        f"wrote {', '.join(truth['files'])} and {out.with_suffix('.json').name} ({pairs})", err=True
-    )
+    note(f"wrote {', '.join(truth['files'])} and {out.with_suffix('.json').name} ({pairs})")
 
 
 def _ultrasonic_output(x, truth, *, peak, fs, seed, imp):
@@ -365,7 +366,7 @@ def _ultrasonic_synth_options(f):
     ]
     for o in reversed(opts):
         f = o(f)
-    return debug_option(temperature_option(f))
+    return verbosity_options(debug_option(temperature_option(f)))
 
 
 @synth.command("oneway")
@@ -543,12 +544,11 @@ def synth_oneway(
     }
     write_json(out.with_suffix(".json"), truth)
     write_json(beacons, Beacons(np.arange(len(pts)), pts).to_json())
-    click.echo(
+    note(
         f"wrote {out.name} ({len(truth['windows'])} windows x {x.shape[1]} receivers), "
         f"{out.with_suffix('.json').name} and {beacons.name} (Tx ids 0-{len(pts) - 1} in "
         "firing order: range with --tx-order "
-        f"{','.join(str(i) for i in range(len(pts)))})",
-        err=True,
+        f"{','.join(str(i) for i in range(len(pts)))})"
     )
 
 
@@ -634,4 +634,4 @@ def synth_echo(map_path, poses, mount, snr_db, no_noise, temp_c, q, fs, seed, im
     ranges = ", ".join(
         "-" if w["distance_m"] is None else f"{w['distance_m']:.3f} m" for w in truth["windows"]
     )
-    click.echo(f"wrote {out.name} and {out.with_suffix('.json').name} (model: {ranges})", err=True)
+    note(f"wrote {out.name} and {out.with_suffix('.json').name} (model: {ranges})")
