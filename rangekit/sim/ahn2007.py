@@ -52,6 +52,22 @@ __all__ = [
 ]
 
 
+def _dof(noise_dof) -> float | None:
+    if noise_dof is None:
+        return None
+    dof = V.positive("noise_dof", noise_dof)
+    if dof <= 2.0:
+        raise InvalidParameterError(f"noise_dof={noise_dof!r} must be > 2 (finite variance)")
+    return dof
+
+
+def _noise(g: np.random.Generator, var: float, size, dof: float | None) -> np.ndarray:
+    """Zero-mean noise of variance ``var``: Gaussian, or Student-t with ``dof`` (> 2)."""
+    if dof is None:
+        return g.normal(0.0, np.sqrt(var), size=size)
+    return np.sqrt(var * (dof - 2.0) / dof) * g.standard_t(dof, size=size)
+
+
 # --------------------------------------------------------------------------- robot
 @dataclass(frozen=True)
 class RobotSim:
@@ -110,6 +126,8 @@ def simulate_robot(
     velocity0_mps=(0.0, 0.0),
     velocity_std_mps: float = 0.0,
     odometry_every: int = 1,
+    noise_dof: float | None = None,
+    odometry_scale: float = 1.0,
     rng=None,
 ) -> RobotSim:
     """Simulate the mobile robot of Ahn & Yu §4.
@@ -141,6 +159,13 @@ def simulate_robot(
         Mean initial velocity (default at rest).
     odometry_every : int
         Odometry at every ``odometry_every``-th row, starting with row 0 (default 1).
+    noise_dof : float, optional
+        Model mismatch (not in the paper): draw the accelerometer noise ``n_a`` from a
+        Student-t law with this many degrees of freedom (> 2), scaled to the variance
+        ``accel_var`` (heavy-tailed); None (default): Gaussian, as eq (7) assumes.
+    odometry_scale : float
+        Model mismatch (not in the paper): the odometer reads ``odometry_scale`` times
+        the true speed (a wheel-radius error; 1.0, the default, is unbiased), > 0.
     rng : seed or Generator
         Anything :func:`numpy.random.default_rng` accepts.
 
@@ -166,6 +191,8 @@ def simulate_robot(
     sp = V.positive("position_std_m", position_std_m, allow_zero=True)
     sv = V.positive("velocity_std_mps", velocity_std_mps, allow_zero=True)
     every = V.positive_int("odometry_every", odometry_every)
+    dof = _dof(noise_dof)
+    scale = V.positive("odometry_scale", odometry_scale)
     v0 = np.asarray(velocity0_mps, dtype=np.float64)
     if v0.shape != (2,) or not np.all(np.isfinite(v0)):
         raise InvalidParameterError(f"velocity0_mps={velocity0_mps!r} must be 2 finite numbers")
@@ -188,12 +215,12 @@ def simulate_robot(
     vel = v_init + np.vstack([np.zeros((1, 2)), np.cumsum(dt * a[:-1], axis=0)])
     dpos = dt * vel[:-1] + 0.5 * dt * dt * a[:-1]
     pos = p0 + np.vstack([np.zeros((1, 2)), np.cumsum(dpos, axis=0)])
-    noise = g.normal(0.0, np.sqrt(qa), size=(n, 2))
+    noise = _noise(g, qa, (n, 2), dof)
     a_meas = a - bias + noise
     w = g.normal(0.0, np.sqrt(qw), size=n)
     z = np.full(n, np.nan)
     rows = np.arange(0, n, every)
-    z[rows] = np.sum(vel[rows] ** 2, axis=1) + w[rows]
+    z[rows] = scale**2 * np.sum(vel[rows] ** 2, axis=1) + w[rows]
     speed = np.full(n, np.nan)
     speed[rows] = np.sqrt(np.maximum(z[rows], 0.0))
     heading = np.arctan2(vel[:, 1], vel[:, 0])
@@ -214,7 +241,8 @@ class PedestrianSim:
     truth_m : ndarray, shape (n, 2)
         True positions ``P_i``.
     measured_m : ndarray, shape (n, 2)
-        Fixes ``P̃_i = P_i + e_i``, ``e_i`` ~ N(0, ``noise_var_m2`` I₂).
+        Fixes ``P̃_i = P_i + e_i``, ``e_i`` ~ N(0, ``noise_var_m2`` I₂) (Student-t of the
+        same variance with ``noise_dof``).
     noise_var_m2 : float
         The per-axis fix variance (m²).
     """
@@ -246,6 +274,7 @@ def simulate_pedestrian(
     r_low: float = 0.0,
     dt_s: float = 1.0,
     start_m=(0.0, 0.0),
+    noise_dof: float | None = None,
     rng=None,
 ) -> PedestrianSim:
     """Simulate the pedestrian walk of Ahn & Yu §4 and its noisy wireless fixes.
@@ -267,6 +296,10 @@ def simulate_pedestrian(
         Interval between fixes (s; the paper gives none, default 1).
     start_m : (float, float)
         The first true position.
+    noise_dof : float, optional
+        Model mismatch (not in the paper): fix errors from a Student-t law with this many
+        degrees of freedom (> 2) per axis, scaled to ``noise_var_m2`` (heavy-tailed);
+        None (default): Gaussian.
     rng : seed or Generator
 
     Returns
@@ -277,13 +310,14 @@ def simulate_pedestrian(
     var = V.positive("noise_var_m2", noise_var_m2, allow_zero=True)
     beta, off, lo = _walk_args(beta_m, offsets, r_low)
     dt = V.positive("dt_s", dt_s)
+    dof = _dof(noise_dof)
     start = np.asarray(start_m, dtype=np.float64)
     if start.shape != (2,) or not np.all(np.isfinite(start)):
         raise InvalidParameterError(f"start_m={start_m!r} must be 2 finite numbers")
     g = np.random.default_rng(rng)
     steps = beta * (g.uniform(lo, 1.0, size=(n - 1, 2)) - off)
     truth = start + np.vstack([np.zeros((1, 2)), np.cumsum(steps, axis=0)])
-    meas = truth + g.normal(0.0, np.sqrt(var), size=(n, 2))
+    meas = truth + _noise(g, var, (n, 2), dof)
     return PedestrianSim(np.arange(n) * dt, truth, meas, var)
 
 

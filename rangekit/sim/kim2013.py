@@ -492,6 +492,9 @@ def simulate(
     distance_source: str = "model",
     snr_db: float = 20.0,
     t_max_s: float | None = None,
+    scale_error: float = 0.0,
+    nlos_prob: float = 0.0,
+    nlos_mean_m: float = 0.15,
     rng=None,
 ) -> KimRun:
     """Simulate one of Kim & Kim 2013's §V runs (see the module notes for every choice).
@@ -522,6 +525,16 @@ def simulate(
     t_max_s : float, optional
         Keep only the run up to this time (a slice of the trajectory); None: the whole run,
         until the robot is at rest at its last waypoint.
+    scale_error : float
+        Model mismatch (not in the paper; model distances only): every distance reads
+        ``(1 + scale_error)`` times the true one (a speed of sound taken at the wrong
+        temperature: 0.18 % per °C), within [-0.5, 0.5]. Default 0 (unbiased).
+    nlos_prob : float
+        Model mismatch (model distances only): the probability, in [0, 1], that a
+        distance comes from a reflected path, longer by an exponential excess of mean
+        ``nlos_mean_m`` (skewed, heavy-tailed errors). Default 0 (line of sight only).
+    nlos_mean_m : float
+        Mean excess of a reflected path (m), > 0. Default 0.15 m.
     rng : seed or Generator
         Anything :func:`numpy.random.default_rng` accepts.
 
@@ -533,8 +546,9 @@ def simulate(
     ------
     InvalidParameterError
         Unknown trajectory or distance source, a negative sigma or k_v, a non-positive
-        wheel base, receiver radius, rate, hearing radius or ``t_max_s``, or rates whose
-        ratio is not an integer.
+        wheel base, receiver radius, rate, hearing radius, ``t_max_s`` or ``nlos_mean_m``,
+        ``scale_error`` or ``nlos_prob`` out of range, or rates whose ratio is not an
+        integer.
 
     Examples
     --------
@@ -564,6 +578,9 @@ def simulate(
         "distance_source": distance_source,
         "snr_db": _validate.in_range("snr_db", snr_db, -60.0, 200.0),
         "t_max_s": None if t_max_s is None else _validate.positive("t_max_s", t_max_s),
+        "scale_error": _validate.in_range("scale_error", scale_error, -0.5, 0.5),
+        "nlos_prob": _validate.in_range("nlos_prob", nlos_prob, 0.0, 1.0),
+        "nlos_mean_m": _validate.positive("nlos_mean_m", nlos_mean_m),
     }
     ratio = params["odo_rate_hz"] / params["fire_rate_hz"]
     every = round(ratio)
@@ -598,6 +615,11 @@ def simulate(
         d_true[j] = np.linalg.norm(rx - beacons.position(int(tx)), axis=1)
     if distance_source == "model":
         d_meas = d_true + params["sigma_dd_m"] * rng.standard_normal(d_true.shape)
+        if params["scale_error"] != 0.0 or params["nlos_prob"] > 0.0:
+            # drawn after the paper's noise, so the paper-settings runs are unchanged
+            nlos = rng.random(d_true.shape) < params["nlos_prob"]
+            excess = rng.exponential(params["nlos_mean_m"], d_true.shape)
+            d_meas = d_meas + params["scale_error"] * d_true + np.where(nlos, excess, 0.0)
         d_meas = np.maximum(d_meas, 0.0)
     else:
         z_max = float(np.max(beacons.xyz_m[:, 2]))
