@@ -50,8 +50,9 @@ def _one_thread_per_worker() -> None:
     required=True,
     type=click.Path(dir_okay=False),
     metavar="FILE.csv|FILE.jsonl",
-    help="Results file (required), CSV or JSON Lines by its suffix; written as sessions "
-    "finish, so an interrupted batch keeps every finished result.",
+    help="Results file (required), CSV or JSON Lines by its suffix, rows only (loads in "
+    "pandas as it is); written as sessions finish, so an interrupted batch keeps every "
+    "finished result. The options go to FILE.meta.json beside it.",
 )
 @click.option(
     "--jobs",

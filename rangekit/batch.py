@@ -66,6 +66,8 @@ __all__ = [
     "Session",
     "find_sessions",
     "iter_rows",
+    "json_value",
+    "meta_path",
     "pair_sessions_by_name",
     "run_batch",
     "run_session",
@@ -142,16 +144,56 @@ class BatchOptions:
             raise InvalidParameterError(f"scheme={self.scheme!r} must be one of {SCHEMES}")
 
     def fingerprint(self) -> str:
-        """A stable text of every option that changes results (checked on resume)."""
+        """A stable JSON text of every option that changes results (checked on resume):
+        option values as JSON (:func:`json_value`), not Python reprs."""
         parts: dict[str, Any] = {
             "scheme": self.scheme,
-            "beepbeep": {k: repr(v) for k, v in sorted(self.beepbeep.items())},
-            "oneway": {k: repr(v) for k, v in sorted(self.oneway.items())},
-            "echo": {k: repr(v) for k, v in sorted(self.echo.items())},
+            "grouping": "pair-by-name" if self.pair_by_name else "rules",
+            "beepbeep": json_value(self.beepbeep),
+            "oneway": json_value(self.oneway),
+            "echo": json_value(self.echo),
         }
-        if self.pair_by_name:  # only then, so that other batches' files still resume
-            parts["grouping"] = "pair-by-name"
-        return json.dumps(parts, sort_keys=True)
+        return json.dumps(parts, sort_keys=True, allow_nan=False)
+
+
+def json_value(v: Any) -> Any:
+    """An option value as plain JSON: a dataclass (``Beep``, ``Transducer``, ``Probe``,
+    ``Calibration``, ...) as an object of its fields plus ``"type"``; a tuple as a list; an
+    array by its length and SHA-1 (a probe's samples); a non-finite float as its text.
+
+    >>> from rangekit.signals import Beep
+    >>> json_value({"detector": "changepoint", "beep": Beep(f_hz=17000.0), "speed": None})
+    ... # doctest: +NORMALIZE_WHITESPACE
+    {'beep': {'type': 'Beep', 'f_hz': 17000.0, 'n_bursts': 4, 'spacing': 5000,
+    'burst_len': 441, 'taper': 22, 'amplitude': 0.9, 'fs': 44100.0},
+    'detector': 'changepoint', 'speed': None}
+    """
+    import dataclasses
+    import math
+
+    if v is None or isinstance(v, (bool, int, str)):
+        return v
+    if isinstance(v, float):
+        return v if math.isfinite(v) else repr(v)
+    if isinstance(v, dict):
+        return {str(k): json_value(x) for k, x in sorted(v.items())}
+    if isinstance(v, (list, tuple)):
+        return [json_value(x) for x in v]
+    if isinstance(v, os.PathLike):
+        return os.fspath(v)
+    if dataclasses.is_dataclass(v) and not isinstance(v, type):
+        out = {"type": type(v).__name__}
+        out.update({f.name: json_value(getattr(v, f.name)) for f in dataclasses.fields(v)})
+        return out
+    if hasattr(v, "tobytes") and hasattr(v, "shape"):  # a numpy array
+        import hashlib
+
+        if v.shape == ():
+            return json_value(v.item())
+        return {"shape": list(v.shape), "sha1": hashlib.sha1(v.tobytes()).hexdigest()}
+    if hasattr(v, "item"):  # a numpy scalar
+        return json_value(v.item())
+    return repr(v)
 
 
 # --- finding sessions ---------------------------------------------------------------------
@@ -726,9 +768,11 @@ def _paired_session(key: str, files: tuple[str, ...], sidecar: Path) -> Session:
 
 
 def _row(session: Session, scheme: str, **values: Any) -> dict[str, Any]:
+    """One results row: every column of :data:`BATCH_COLUMNS`, None where missing;
+    ``files`` the session's files as found (their folders kept), ``flags`` a list."""
     row: dict[str, Any] = dict.fromkeys(BATCH_COLUMNS)
-    row.update(session=session.name, status="ok", error="", scheme=scheme, flags="")
-    row["files"] = ";".join(Path(f).name for f in session.files)
+    row.update(session=session.name, status="ok", scheme=scheme)
+    row["files"] = [_printable(f) for f in session.files]
     row.update(values)
     return row
 
@@ -760,7 +804,7 @@ def _beepbeep_rows(session: Session, opts: BatchOptions) -> list[dict[str, Any]]
                 distance_m=r.distance_m,
                 sigma_m=r.sigma_m,
                 true_distance_m=truth.get((r.a, r.b)),
-                flags=",".join(r.flags),
+                flags=list(r.flags),
             )
         )
     return rows
@@ -789,7 +833,7 @@ def _ultrasonic_rows(session: Session, scheme: str, opts: BatchOptions) -> list[
             _row(
                 session,
                 scheme,
-                files=Path(r["file"]).name,
+                files=[_printable(str(r["file"]))],
                 window=r["window"],
                 tx=r.get("tx"),
                 channel=r["channel"],
@@ -798,6 +842,7 @@ def _ultrasonic_rows(session: Session, scheme: str, opts: BatchOptions) -> list[
                 true_distance_m=truth.get((r["window"], r["channel"])),
                 snr_db=r["snr_db"],
                 arrival_s=r["arrival_s"],
+                flags=list(r.get("flags") or ()),
             )
         )
     return rows
@@ -837,12 +882,54 @@ def _run_chunk(sessions: Sequence[Session], options: BatchOptions) -> list[list[
 
 # --- the results file -----------------------------------------------------------------------
 
+#: Type of each column (``docs/formats.md``, "Batch results"): JSON values, and what a CSV
+#: cell holds (``list`` cells are the items joined by :data:`LIST_SEPARATOR`). Every column
+#: may be null (an empty CSV cell) except ``session``, ``session_rows``, ``status`` and
+#: ``scheme``.
+COLUMN_TYPES = {
+    "session": "str",
+    "session_rows": "int",
+    "status": "str",
+    "error": "str",
+    "scheme": "str",
+    "files": "list",
+    "a": "int",
+    "b": "int",
+    "window": "int",
+    "tx": "int",
+    "channel": "int",
+    "distance_m": "float",
+    "sigma_m": "float",
+    "true_distance_m": "float",
+    "snr_db": "float",
+    "arrival_s": "float",
+    "flags": "list",
+}
+#: How a list (``files``, ``flags``) is joined in a CSV cell; the same as in every other
+#: CSV rangekit writes (``rangekit range``, ``detect``).
+LIST_SEPARATOR = ";"
+#: ``format`` of the metadata file beside a results file.
+META_FORMAT = "rangekit-batch-meta"
+META_VERSION = 2
+
+
+def meta_path(results: str | os.PathLike) -> Path:
+    """The metadata file of a results file: ``RESULTS.meta.json`` beside it.
+
+    >>> meta_path("out/day1.csv").as_posix(), meta_path("r.jsonl").name
+    ('out/day1.meta.json', 'r.meta.json')
+    """
+    p = Path(results)
+    return p.with_name(p.stem + ".meta.json")
+
 
 def _cell(v: Any) -> str:
     if v is None:
         return ""
     if isinstance(v, float):
         return repr(v) if v == v else ""
+    if isinstance(v, (list, tuple)):
+        return LIST_SEPARATOR.join(_printable(str(t)) for t in v)
     return _printable(str(v))
 
 
@@ -855,33 +942,47 @@ def _csv_line(row: dict[str, Any]) -> str:
     return buf.getvalue()
 
 
+def _json_value(v: Any) -> Any:
+    if isinstance(v, float) and v != v:
+        return None
+    if isinstance(v, str):
+        return _printable(v)
+    if isinstance(v, (list, tuple)):
+        return [_json_value(t) for t in v]
+    return v
+
+
 def _json_line(row: dict[str, Any]) -> str:
-    clean = {
-        c: (None if isinstance(row[c], float) and row[c] != row[c] else row[c])
-        for c in BATCH_COLUMNS
-    }
-    clean = {c: (_printable(v) if isinstance(v, str) else v) for c, v in clean.items()}
+    clean = {c: _json_value(row[c]) for c in BATCH_COLUMNS}
     return json.dumps(clean, allow_nan=False) + "\n"
+
+
+#: First lines of results files written before the metadata file (version 1): a CSV
+#: comment, a JSONL object of another schema. Such files are refused by ``--resume``.
+_OLD_HEADS = ("# rangekit batch ", '{"rangekit_batch"')
 
 
 class ResultsFile:
     """A batch's results file (CSV or JSON Lines), appended one session at a time.
 
-    The first line identifies the batch and its options (CSV: a ``#`` comment; JSONL: an
-    object with the key ``rangekit_batch``); CSV then has the header row. Each finished
-    session is appended as its rows in one ``write`` on a file opened for appending, so a
-    batch killed at any moment leaves whole sessions plus at most one torn tail, which
-    :meth:`open` with ``resume=True`` cuts off (a tail is torn when its last line lacks
-    its newline or its session has fewer rows than its ``session_rows``). When the batch
-    completes, :meth:`finish` rewrites the file atomically in session order, so a
-    resumed batch ends with the same file as an uninterrupted one.
+    The file holds rows only (CSV: a plain header row first), so that ``csv.DictReader``,
+    ``pandas.read_csv`` and a JSON Lines reader take it as it is; the batch's options are
+    in its metadata file ``RESULTS.meta.json`` beside it (:func:`meta_path`), written
+    atomically before the first row. Each finished session is appended as its rows in
+    one ``write`` on a file opened for appending, so a batch killed at any moment leaves
+    whole sessions plus at most one torn tail, which ``resume=True`` cuts off (a tail is
+    torn when its last line lacks its newline or its session has fewer rows than its
+    ``session_rows``). When the batch completes, :meth:`finish` rewrites the file
+    atomically in session order, so a resumed batch ends with the same file as an
+    uninterrupted one.
 
     Parameters
     ----------
     path : str or os.PathLike
         ``.csv`` or ``.jsonl`` (the format follows the suffix).
     options : BatchOptions
-        Written into the first line; a resumed file must have been written with the same.
+        Written into the metadata file; a resumed file must have been written with the
+        same.
     resume : bool
         Continue an existing file (skip its finished sessions). Without it an existing
         file is an error (nothing is overwritten).
@@ -890,7 +991,9 @@ class ResultsFile:
     ------
     InvalidParameterError
         Unknown suffix; an existing file without ``resume``; resuming a file written
-        with other options or that is not a batch results file.
+        with other options, without its metadata file, by a rangekit older than the
+        metadata file, or that is not a batch results file; a metadata file in the way
+        that belongs to another results file.
     InputFileError
         The folder does not exist or the file cannot be written.
     """
@@ -904,12 +1007,22 @@ class ResultsFile:
                 f"{suf or 'no suffix'!r})"
             )
         self.fmt = suf[1:]
-        self.head = self._head(options)
+        self.head = ",".join(BATCH_COLUMNS) + "\n" if self.fmt == "csv" else ""
+        self.meta_path = meta_path(self.path)
+        self.meta = {
+            "format": META_FORMAT,
+            "version": META_VERSION,
+            "results": self.path.name,
+            "columns": {c: COLUMN_TYPES[c] for c in BATCH_COLUMNS},
+            "list_separator": LIST_SEPARATOR,
+            "options": json.loads(options.fingerprint()),
+        }
         self.done: dict[str, list[str]] = {}  # session -> its lines, in file order
         self.status: dict[str, str] = {}  # session -> "ok" or "error"
         from rangekit.io.guard import check_output
 
         check_output(self.path)  # no link, device or directory; the folder exists
+        check_output(self.meta_path)
         if self.path.exists():
             if not resume:
                 raise InvalidParameterError(
@@ -918,6 +1031,8 @@ class ResultsFile:
                 )
             self._recover()
         else:
+            self._claim_meta()
+            self._write_meta()
             self._write_new(self.head)
         try:
             nofollow = getattr(os, "O_NOFOLLOW", 0)
@@ -925,11 +1040,37 @@ class ResultsFile:
         except OSError as e:
             raise InputFileError(f"cannot write '{self.path}': {e.strerror or e}") from e
 
-    def _head(self, options: BatchOptions) -> str:
-        meta = json.dumps({"version": 1, "options": json.loads(options.fingerprint())})
-        if self.fmt == "csv":
-            return f"# rangekit batch {meta}\n" + ",".join(BATCH_COLUMNS) + "\n"
-        return json.dumps({"rangekit_batch": json.loads(meta)}) + "\n"
+    def _read_meta(self) -> Any:
+        """The metadata file's object (None if there is none)."""
+        if not os.path.lexists(self.meta_path):
+            return None
+        from rangekit.io.guard import read_json_file
+
+        try:
+            return read_json_file(self.meta_path)
+        except RangekitError:
+            return {}
+
+    def _claim_meta(self) -> None:
+        """Refuse a new batch whose metadata file would replace one that is not an
+        orphan of this results file (another file's, or not rangekit's)."""
+        old = self._read_meta()
+        if old is None:
+            return
+        ours = isinstance(old, dict) and old.get("format") == META_FORMAT
+        other = old.get("results") if ours else None
+        if ours and (other == self.path.name or not (self.path.parent / str(other)).exists()):
+            return  # left by a batch whose results file is gone
+        whose = f"of '{other}'" if ours else "that rangekit did not write"
+        raise InvalidParameterError(
+            f"'{self.meta_path}' exists, a file {whose}: choose another output name "
+            "(nothing was overwritten)"
+        )
+
+    def _write_meta(self) -> None:
+        from rangekit.io.sidecar import write_text_atomic
+
+        write_text_atomic(self.meta_path, json.dumps(self.meta, indent=2) + "\n")
 
     def _write_new(self, text: str) -> None:
         try:
@@ -950,6 +1091,39 @@ class ResultsFile:
             raise ValueError("wrong number of cells")
         return cells[0], int(cells[1]), cells[2]
 
+    def _check_resumable(self, text: str) -> None:
+        """Refuse to resume a file this batch did not write (one line, exit 2)."""
+        first = text.split("\n", 1)[0]
+        cannot = f"cannot resume '{self.path}'"
+        if first.startswith(_OLD_HEADS):
+            raise InvalidParameterError(
+                f"{cannot}: it was written by an older rangekit (options in its first line, "
+                "no metadata file); finish it with that version or start a new -o file"
+            )
+        meta = self._read_meta()
+        if meta is None:
+            raise InvalidParameterError(
+                f"{cannot}: its metadata file '{self.meta_path}' is missing (a batch "
+                "results file has one beside it); write a new file"
+            )
+        if not isinstance(meta, dict) or meta.get("format") != META_FORMAT:
+            raise InvalidParameterError(
+                f"{cannot}: '{self.meta_path}' is not a rangekit batch metadata file; "
+                "write a new file"
+            )
+        if meta != self.meta:
+            what = "another results file" if meta.get("results") != self.path.name else None
+            raise InvalidParameterError(
+                f"{cannot}: its metadata file '{self.meta_path}' describes "
+                f"{what or 'a batch with other options'}; rerun with the same options, or "
+                "write a new file"
+            )
+        if not text.startswith(self.head):
+            raise InvalidParameterError(
+                f"{cannot}: its first line is not the header of a batch results file; "
+                "write a new file"
+            )
+
     def _recover(self) -> None:
         """Read a resumed file: keep whole sessions, cut a torn tail off the file."""
         try:
@@ -958,15 +1132,7 @@ class ResultsFile:
             raise InputFileError(f"cannot read '{self.path}': {e.strerror or e}") from e
         import csv
 
-        text = data.decode("utf-8", errors="replace")
-        if not text.startswith(self.head):
-            first = text.splitlines()[0] if text else ""
-            what = "other options" if "rangekit" in first and "batch" in first else "something else"
-            raise InvalidParameterError(
-                f"cannot resume '{self.path}': it was written by {what} (its first "
-                f"line{'s' if self.fmt == 'csv' else ''} differ from this batch's); rerun with "
-                "the same options, or write a new file"
-            )
+        self._check_resumable(data.decode("utf-8", errors="replace"))
         pos = len(self.head.encode("utf-8"))
         keep = pos
         pending: list[str] = []
@@ -1277,15 +1443,18 @@ def _dask_watch(client, futs, record, *, address: str, wait) -> None:
 
 
 def iter_rows(path: str | os.PathLike) -> Iterable[dict[str, Any]]:
-    """The data rows of a batch results file as dicts (CSV cells as strings)."""
+    """The data rows of a batch results file as dicts: JSON values from JSON Lines, the
+    cells as strings from CSV. Reads files of the older layout too (their first line,
+    the options, is skipped)."""
     p = Path(path)
-    text = p.read_text(encoding="utf-8")
+    lines = p.read_text(encoding="utf-8").splitlines()
+    if lines and lines[0].startswith(_OLD_HEADS):
+        lines = lines[1:]
     if p.suffix.lower() == ".jsonl":
-        for line in text.splitlines()[1:]:
+        for line in lines:
             if line.strip():
                 yield json.loads(line)
         return
     import csv
 
-    lines = [ln for ln in text.splitlines() if not ln.startswith("#")]
     yield from csv.DictReader(lines)

@@ -196,8 +196,47 @@ def test_existing_file_needs_resume_and_same_options(archive, tmp_path):
     with pytest.raises(InputFileError, match="does not exist"):
         ResultsFile(tmp_path / "nope" / "r.csv", BatchOptions(), resume=False)
     (tmp_path / "alien.csv").write_text("a,b\n1,2\n")
-    with pytest.raises(InvalidParameterError, match="something else"):
+    with pytest.raises(InvalidParameterError, match=r"alien\.meta\.json' is missing"):
         run_batch(sessions, tmp_path / "alien.csv", resume=True)
+    shutil.copy(tmp_path / "r.meta.json", tmp_path / "alien.meta.json")
+    with pytest.raises(InvalidParameterError, match="another results file"):
+        run_batch(sessions, tmp_path / "alien.csv", resume=True)
+    # The metadata of r.csv with its name changed to alien.csv's: the header decides.
+    meta = json.loads((tmp_path / "r.meta.json").read_text())
+    (tmp_path / "alien.meta.json").write_text(json.dumps({**meta, "results": "alien.csv"}))
+    with pytest.raises(InvalidParameterError, match="not the header"):
+        run_batch(sessions, tmp_path / "alien.csv", resume=True)
+    assert (tmp_path / "alien.csv").read_text() == "a,b\n1,2\n"
+    # A new batch whose metadata file would replace another results file's is refused.
+    with pytest.raises(InvalidParameterError, match=r"a file of 'r\.csv'"):
+        run_batch(sessions, tmp_path / "r.jsonl")
+    assert not (tmp_path / "r.jsonl").exists()
+    # An orphan (its results file deleted) is replaced.
+    out.unlink()
+    run_batch(sessions, out)
+    assert out.read_bytes() == before
+
+
+@pytest.mark.parametrize("suffix", [".csv", ".jsonl"])
+def test_old_layout_is_read_but_not_resumed(archive, tmp_path, suffix):
+    """Files of the layout before the metadata file (options in a first line): iter_rows
+    skips that line; --resume refuses them in one line and leaves them untouched."""
+    sessions = _sessions(archive)[:1]
+    head = (
+        '# rangekit batch {"version": 1, "options": {}}\n' + ",".join(BATCH_COLUMNS)
+        if suffix == ".csv"
+        else '{"rangekit_batch": {"version": 1, "options": {}}}'
+    )
+    row = dict.fromkeys(BATCH_COLUMNS, "")
+    row.update(session="s", session_rows="1", status="ok", distance_m="2.0")
+    body = ",".join(row.values()) if suffix == ".csv" else json.dumps(row)
+    old = tmp_path / f"old{suffix}"
+    old.write_text(head + "\n" + body + "\n")
+    assert [r["distance_m"] for r in iter_rows(old)] == ["2.0"]
+    with pytest.raises(InvalidParameterError, match="older rangekit") as e:
+        run_batch(sessions, old, resume=True)
+    assert "\n" not in str(e.value)
+    assert old.read_text() == head + "\n" + body + "\n"
 
 
 @pytest.mark.parametrize("suffix", [".csv", ".jsonl"])
@@ -206,7 +245,7 @@ def test_torn_tail_is_cut_and_redone(archive, tmp_path, suffix):
     full = tmp_path / f"full{suffix}"
     run_batch(sessions, full)
     lines = full.read_text().splitlines(keepends=True)
-    n_head = 2 if suffix == ".csv" else 1
+    n_head = 1 if suffix == ".csv" else 0
     trio_at = next(i for i, ln in enumerate(lines) if "trio" in ln)
     for cut in (
         "".join(lines[: trio_at + 1]),  # one of the trio's three rows
@@ -215,6 +254,8 @@ def test_torn_tail_is_cut_and_redone(archive, tmp_path, suffix):
     ):
         part = tmp_path / f"part{suffix}"
         part.write_text(cut)
+        meta = json.loads((tmp_path / "full.meta.json").read_text())
+        write_json(tmp_path / "part.meta.json", {**meta, "results": part.name})
         s = run_batch(sessions, part, resume=True)
         assert part.read_bytes() == full.read_bytes()
         assert s.skipped < len(sessions)
@@ -241,7 +282,7 @@ def test_sigkill_twice_then_resume_equals_uninterrupted(archive, tmp_path):
         p = subprocess.Popen(args, env=env, stderr=subprocess.PIPE)
         deadline = time.monotonic() + 120
         while p.poll() is None and time.monotonic() < deadline:
-            n = out.read_text().count("\n") - 2 if out.exists() else 0
+            n = out.read_text().count("\n") - 1 if out.exists() else 0
             if n >= target:
                 p.send_signal(signal.SIGKILL)
                 kills += 1
@@ -253,7 +294,9 @@ def test_sigkill_twice_then_resume_equals_uninterrupted(archive, tmp_path):
     r = subprocess.run([*cmd(out, 2), "--resume"], env=env, capture_output=True, text=True)
     assert r.returncode == 8, r.stderr
     assert out.read_bytes() == ref.read_bytes()
-    assert sorted(os.listdir(tmp_path)) == ["out.csv", "ref.csv"]
+    assert sorted(os.listdir(tmp_path)) == ["out.csv", "out.meta.json", "ref.csv", "ref.meta.json"]
+    meta = json.loads((tmp_path / "out.meta.json").read_text())
+    assert {**meta, "results": "ref.csv"} == json.loads((tmp_path / "ref.meta.json").read_text())
 
 
 def test_dask_local_cluster_equals_local(archive, tmp_path):

@@ -86,7 +86,7 @@ def test_missing_take_is_a_session_with_a_problem_naming_the_folders(tmp_path):
     rows = run_session(t2, BatchOptions())
     assert len(rows) == 1 and rows[0]["status"] == "error"
     assert str(folders[1]) in rows[0]["error"] and "'t2'" in rows[0]["error"]
-    assert rows[0]["files"] == "t2.wav" and rows[0]["session_rows"] == 1
+    assert rows[0]["files"] == [str(tmp_path / "d0/t2.wav")] and rows[0]["session_rows"] == 1
 
 
 def test_matching_is_case_sensitive(tmp_path):
@@ -165,7 +165,7 @@ def test_sessions_are_beepbeep_whatever_the_default_scheme(tmp_path):
 
 def test_pair_by_name_is_recorded_so_resume_does_not_mix_groupings(tmp_path):
     plain, paired = BatchOptions(), BatchOptions(pair_by_name=True)
-    assert "grouping" not in plain.fingerprint()  # files of other batches keep resuming
+    assert json.loads(plain.fingerprint())["grouping"] == "rules"
     assert json.loads(paired.fingerprint())["grouping"] == "pair-by-name"
     out = tmp_path / "r.csv"
     ResultsFile(out, paired, resume=False).close()

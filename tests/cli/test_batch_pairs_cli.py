@@ -42,8 +42,8 @@ def archive(tmp_path_factory):
 
 
 def _rows(path):
-    lines = [ln for ln in path.read_text().splitlines() if not ln.startswith("#")]
-    return list(csv.DictReader(lines))
+    with open(path, newline="") as f:
+        return list(csv.DictReader(f))
 
 
 def _pair(root, out, *extra):
@@ -65,7 +65,8 @@ def test_pairs_by_name_ranges_every_take(archive, tmp_path):
         assert abs(err) < 0.02, (row["session"], err)
         assert row["true_distance_m"] == ""  # no sidecar
     take_02 = next(row for row in rows if row["session"] == "take_02")
-    assert take_02["files"] == "take_02.wav;take_02.flac"  # device order = folder order
+    # device order = folder order; the device folders are kept
+    assert take_02["files"] == f"{root}/dev0/take_02.wav;{root}/dev1/take_02.flac"
     assert r.stderr.splitlines()[0] == f"batch: 3 sessions, 1 job -> {out}"
     # The same recordings grouped by the NAME_devN rule give identical distances.
     out2 = tmp_path / "flat.csv"
@@ -82,7 +83,7 @@ def test_sidecar_beside_device_0_gives_the_truth(archive, tmp_path):
     (src / "dev0" / "take_02.json").write_text(json.dumps(sidecar))
     out = tmp_path / "r.jsonl"
     ok(_pair(src, out, "-q"))
-    rows = {x["session"]: x for x in map(json.loads, out.read_text().splitlines()[1:])}
+    rows = {x["session"]: x for x in map(json.loads, out.read_text().splitlines())}
     assert rows["take_02"]["true_distance_m"] == 1.9
     assert rows["take_01"]["true_distance_m"] is None
 
