@@ -180,6 +180,7 @@ def simulate(
     sensor_sway_rad: float = math.radians(1.0),
     range_method: str = "specular",
     sensor: srf02.SRF02 | None = None,
+    logged_heading_sigma_rad: float | None = None,
     rng: RngLike = None,
 ) -> GirardRun:
     """Simulate the paper's test walk: steps, compass, SRF02 readings, and the truth.
@@ -210,6 +211,10 @@ def simulate(
         not tested on its own model. Default ``"specular"``.
     sensor : SRF02, optional
         Sensor parameters (error model, cycle); default ``SRF02()``.
+    logged_heading_sigma_rad : float, optional
+        Model mismatch (not in the paper): the heading 1-sigma the step log states (what
+        the IMU's datasheet says), >= 0, when it differs from the noise drawn
+        (``heading_noise_rad``). None (default): the log states the drawn noise.
     rng : RngLike, optional
         Random source, anything :func:`numpy.random.default_rng` accepts.
 
@@ -246,6 +251,9 @@ def simulate(
         "heading_walk_rad": pos("heading_walk_rad", heading_walk_rad, allow_zero=True),
         "sensor_sway_rad": pos("sensor_sway_rad", sensor_sway_rad, allow_zero=True),
         "range_method": range_method,
+        "logged_heading_sigma_rad": None
+        if logged_heading_sigma_rad is None
+        else pos("logged_heading_sigma_rad", logged_heading_sigma_rad, allow_zero=True),
     }
     if not math.isfinite(params["heading_drift_rad_per_step"]):
         raise InvalidParameterError(
@@ -268,9 +276,9 @@ def simulate(
     meas_head = true_head + params["heading_drift_rad_per_step"] * k + walk + noise
     meas_head = (meas_head + np.pi) % (2 * np.pi) - np.pi
     t_steps = k * T
-    steps = StepLog(
-        t_steps, np.full(n, STEP_LENGTH_M), meas_head, np.full(n, params["heading_noise_rad"])
-    )
+    logged = params["logged_heading_sigma_rad"]
+    logged = params["heading_noise_rad"] if logged is None else logged
+    steps = StepLog(t_steps, np.full(n, STEP_LENGTH_M), meas_head, np.full(n, logged))
     dr = path[0] + np.cumsum(steps.vectors_m, axis=0)
 
     # Sequential firing of the two sensors from t = 0 to the last step.

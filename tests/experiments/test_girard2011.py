@@ -54,8 +54,8 @@ def plots(tmp_path_factory):
 
 @pytest.fixture(scope="module")
 def report():
-    """Table 1 at ν = 150 on the 10 held-out walks of seed 1."""
-    return run_table(trials=TEST_TRIALS, seed=TEST_SEED, nus=(150,))
+    """Table 1 at ν = 150 on the 10 held-out walks of seed 1 (mismatch rows: ``sweep``)."""
+    return run_table(trials=TEST_TRIALS, seed=TEST_SEED, nus=(150,), mismatch=False)
 
 
 @pytest.fixture(scope="module")
@@ -131,6 +131,29 @@ def test_start_given_within_half_a_metre(report, method, measured):
     assert row.measured >= _mu(report, "ranging", method) - 0.02
 
 
+@pytest.mark.parametrize(("method", "measured"), [("Girard", 0.265), ("SIR", 0.306)])
+def test_model_mismatch_rows(sweep, method, measured):
+    """Compass 4° + 0.4°/step while the log says 2°, SRF02 noise and slips doubled, filter
+    defaults, start within 0.5 m (seed 1, 2 walks: μ measured beside the parameter)."""
+    mis = f"with ranging, {method} ν=150, start within 0.5 m, {girard2011._MISMATCH_LABEL}"
+    row = sweep.find("tracking error μ", mis)
+    assert row.oracle == "" and row.paper is None
+    assert measured / 2 < row.measured < 2 * measured
+    ok = sweep.find("tracking error μ", f"with ranging, {method} ν=150, start within 0.5 m")
+    assert row.measured > 1.5 * ok.measured  # measured 2.3x (Girard), 2.8x (SIR)
+    reinit = f"with ranging, ν=150, {girard2011._MISMATCH_LABEL}"
+    assert sweep.find("re-initialisations (every particle eliminated), total", reinit).measured == 0
+
+
+def test_mismatch_walks_state_the_compass_the_user_believes():
+    sim = girard2011.simulate(**girard2011.MISMATCH, rng=0)
+    assert np.allclose(sim.steps.heading_sigma_rad, np.radians(2.0))
+    assert sim.params["heading_noise_rad"] == pytest.approx(np.radians(4.0))
+    plain = girard2011.simulate(rng=0)
+    assert np.allclose(plain.steps.heading_sigma_rad, np.radians(2.0))  # the drawn noise
+    assert plain.params["logged_heading_sigma_rad"] is None
+
+
 def test_sweep_nu_1000(sweep):
     for method in ("Girard", "SIR"):
         assert _mu(sweep, "ranging", method, 1000) <= 0.13  # measured 0.107, 0.086 (2 walks)
@@ -200,8 +223,9 @@ def test_json_rows_form(sweep):
     assert doc["experiment"] == "girard2011"
     assert doc["params"]["trials"] == SWEEP_TRIALS and doc["params"]["nus"] == list(NUS)
     # 2 filters x 3 modes x 5 stats, 2 ratios x 2, 6 spread ratios, 2 x 5 sweep stats,
-    # 4 cloud sizes, 2 dead-reckoning rows, 1 re-initialisation row, 2 x 5 given-start stats
-    assert len(doc["rows"]) == 30 + 4 + 6 + 10 + 4 + 2 + 1 + 10
+    # 4 cloud sizes, 2 dead-reckoning rows, 1 re-initialisation row, 2 x 5 given-start stats,
+    # 2 x 5 model-mismatch stats and their re-initialisation row
+    assert len(doc["rows"]) == 30 + 4 + 6 + 10 + 4 + 2 + 1 + 10 + 11
     for row in doc["rows"]:
         assert {"metric", "condition", "paper", "measured", "unit", "note", "oracle"} <= set(row)
         assert row["paper"] is None or isinstance(row["paper"], float)
@@ -241,7 +265,7 @@ def test_sweep_reuses_the_same_streams(sweep, monkeypatch):
         return real(rng=rng)
 
     monkeypatch.setattr(girard2011, "simulate", spy)
-    small = run_table(trials=SWEEP_TRIALS, seed=TEST_SEED, nus=(150,))
+    small = run_table(trials=SWEEP_TRIALS, seed=TEST_SEED, nus=(150,), mismatch=False)
     assert {(s, i) for s, i, _ in seen} == walks(TEST_SEED, SWEEP_TRIALS) and len(seen) == 2
     for mode in PAPER_TABLE_1:
         assert _mu(small, mode) == _mu(sweep, mode)
