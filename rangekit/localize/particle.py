@@ -46,8 +46,10 @@ from rangekit.sensors.srf02 import SRF02
 from rangekit.types import RngLike
 
 __all__ = [
+    "MAX_PARTICLES",
     "METHODS",
     "MODES",
+    "TRACK_COLUMNS",
     "Cloud",
     "ParticleConfig",
     "ParticleEvent",
@@ -55,8 +57,10 @@ __all__ = [
     "TrackingError",
     "eq1_weights",
     "keep_best",
+    "rig_config",
     "sample_motion_vectors",
     "track_particles",
+    "track_rows",
     "tracking_error",
     "weighted_mean",
 ]
@@ -66,6 +70,15 @@ __all__ = [
 METHODS = ("girard", "sir")
 #: Table 1's columns: steps only, steps + floor plan, steps + floor plan + ranging.
 MODES = ("imu", "model", "ranging")
+
+#: Largest ``n_particles`` accepted. Memory bounds it: SIR holds about 100 bytes per
+#: particle (0.1 GB at the bound), the paper's filter ν κ candidate moves of about 56 bytes
+#: each before merging (1.1 GB at the bound with κ = 20); time grows linearly (about 5
+#: SIR updates per second at the bound on one core).
+MAX_PARTICLES = 1_000_000
+
+#: Columns of :func:`track_rows` (the ``rangekit track particle`` output).
+TRACK_COLUMNS = ("t_s", "x_m", "y_m", "n_particles", "spread_m")
 
 # Angular slack of the eq. (3) window, as in rangekit.sensors.srf02 (exact perpendiculars).
 _ANGLE_TOL = 1e-12
@@ -83,7 +96,8 @@ class ParticleConfig:
         Table 1's columns: steps only; steps and the floor plan (moves through walls
         eliminated); steps, plan and range readings. Default ``"ranging"``.
     n_particles : int
-        ν, the maximum number of particles kept (§3.1). Default 150.
+        ν, the maximum number of particles kept (§3.1), at most :data:`MAX_PARTICLES`.
+        Default 150.
     eps_m : float
         ε, radius of the motion-vector error (§3.1), m. Default 0.25.
     kappa : int
@@ -99,6 +113,11 @@ class ParticleConfig:
         Sensor axes relative to the walking direction, one per sensor index of the range
         log. Default ``(+pi/2, -pi/2)``: two sensors back to back, facing left (sensor 0)
         and right (sensor 1) of the walker (Girard §2.6, §3.3, Fig. 8b).
+    lever_arms_m : tuple of (float, float), or None
+        Each sensor's position in the body frame (x along the walking direction, y to
+        its left), m, one per mount; the rays start there instead of at the particle
+        (turned with the step's heading). None (default): every sensor at the particle.
+        :func:`rig_config` takes them from a rig file's tags.
     max_reading_age_s : float
         With ``use_readings="latest"``, a step uses each sensor's latest reading no older
         than this. Default 0.3 s.
@@ -161,6 +180,7 @@ class ParticleConfig:
     n_rays: int = 7
     sensor: SRF02 | None = None
     mount_angles_rad: tuple[float, ...] = (0.5 * math.pi, -0.5 * math.pi)
+    lever_arms_m: tuple[tuple[float, float], ...] | None = None
     max_reading_age_s: float = 0.3
     use_readings: str = "all"
     weighting: str = "product"
@@ -234,10 +254,92 @@ class ParticleConfig:
             raise InvalidParameterError(
                 f"mount_angles_rad={self.mount_angles_rad!r} must be finite angles (>= 1)"
             )
+        if vals["n_particles"] > MAX_PARTICLES:
+            raise InvalidParameterError(
+                f"n_particles={vals['n_particles']} is above the bound {MAX_PARTICLES:,} "
+                "(memory: the paper's filter holds n_particles * kappa candidate moves)"
+            )
         vals["sensor"] = sensor
         vals["mount_angles_rad"] = mounts
+        vals["lever_arms_m"] = _lever_arms(self.lever_arms_m, len(mounts))
         for k, val in vals.items():
             object.__setattr__(self, k, val)
+
+
+def _lever_arms(lever: Any, n_mounts: int) -> tuple[tuple[float, float], ...] | None:
+    """Validated ``lever_arms_m``: None, or one finite (x, y) per mount."""
+    if lever is None:
+        return None
+    try:
+        arr = np.asarray(lever, dtype=np.float64)
+    except (TypeError, ValueError):
+        arr = np.zeros(0)
+    if arr.shape != (n_mounts, 2) or not np.all(np.isfinite(arr)) or np.any(np.abs(arr) > 10):
+        raise InvalidParameterError(
+            f"lever_arms_m={lever!r} must be {n_mounts} finite (x, y) pairs within 10 m, "
+            "one per mount angle"
+        )
+    return tuple((float(x), float(y)) for x, y in arr)
+
+
+def rig_config(
+    rig: Any, *, mount_angles_rad: Sequence[float] | None = None, name: str = "the rig", **kw: Any
+) -> ParticleConfig:
+    """A :class:`ParticleConfig` whose range sensors are the tags of a rig file.
+
+    Sensor ``s`` of the range log is the rig's ``s``-th tag (``body.tags`` in file order);
+    its lever arm (x forward, y left; z is ignored) places the sensor on the body, and its
+    axis points away from the body centre along the lever arm (``atan2(y, x)``: a tag at
+    ``(0, 0.15)`` faces left, +90°) unless ``mount_angles_rad`` gives the axes. The rig's
+    anchors are not used (the filter ranges walls, not anchors). With ``method="sir"`` the
+    rig's step-length sigma (``odometry.length_sigma_m``) is ``step_sigma_m`` unless given.
+
+    Parameters
+    ----------
+    rig : rangekit.rig.Rig
+        Its odometry must be ``steps`` (the filter moves on step events).
+    mount_angles_rad : sequence of float, optional
+        One axis per tag, rad, relative to the walking direction.
+    name : str
+        The rig's name in error messages (its file).
+    **kw
+        Other :class:`ParticleConfig` fields.
+
+    Raises
+    ------
+    InvalidParameterError
+        If the rig's odometry is not ``steps``, a tag sits at the body centre without a
+        given axis, or ``mount_angles_rad`` does not give one angle per tag.
+    """
+    from rangekit.rig import Rig
+
+    if not isinstance(rig, Rig):
+        raise InvalidParameterError(f"rig must be a rangekit.rig.Rig, got {type(rig).__name__}")
+    where = name
+    if rig.odometry.kind != "steps":
+        raise InvalidParameterError(
+            f"{where}: the particle filter moves on step events; the rig's odometry is "
+            f"{rig.odometry.kind!r}, not 'steps'"
+        )
+    lever = rig.tag_lever_m[:, :2]
+    if mount_angles_rad is None:
+        centre = np.flatnonzero(np.hypot(lever[:, 0], lever[:, 1]) == 0.0)
+        if centre.size:
+            raise InvalidParameterError(
+                f"{where}: tag {int(rig.tag_ids[centre[0]])} sits at the body centre, so its "
+                "axis cannot be taken from its lever arm; give the sensor axes (--mounts)"
+            )
+        mounts = tuple(float(a) for a in np.arctan2(lever[:, 1], lever[:, 0]))
+    else:
+        mounts = tuple(float(a) for a in mount_angles_rad)
+        if len(mounts) != rig.n_tags:
+            raise InvalidParameterError(
+                f"{where}: {len(mounts)} mount angle(s) for the rig's {rig.n_tags} tag(s)"
+            )
+    if kw.get("method") == "sir" and "step_sigma_m" not in kw:
+        kw["step_sigma_m"] = rig.odometry.length_sigma_m
+    levers = tuple((float(x), float(y)) for x, y in lever)
+    return ParticleConfig(mount_angles_rad=mounts, lever_arms_m=levers, **kw)
 
 
 @dataclass(frozen=True)
@@ -302,6 +404,12 @@ class TrackingError:
     max_m: float
     min_m: float
     ending_m: float
+
+
+def track_rows(track: ParticleTrack) -> tuple[tuple[str, ...], np.ndarray]:
+    """:data:`TRACK_COLUMNS` and one row per step: time, estimate, cloud size, spread."""
+    rows = np.column_stack([track.t_s, track.xy_m, track.n_particles, track.spread_m])
+    return TRACK_COLUMNS, rows
 
 
 def tracking_error(xy_m: Any, truth_m: Any) -> TrackingError:
@@ -465,6 +573,8 @@ class _World:
         s = cfg.sensor
         self.sensor = s
         self.mounts = np.array(cfg.mount_angles_rad, dtype=np.float64)
+        lever = cfg.lever_arms_m
+        self.lever = None if lever is None or not np.any(lever) else np.array(lever)
         self.psi = s.ray_offsets_rad
         self.rmax_ray = s.max_range_at(self.psi)
         self.thr = 0.5 * math.pi - s.incidence_window_rad - _ANGLE_TOL
@@ -489,12 +599,23 @@ class _World:
             cols = np.flatnonzero(ctx.frac == f)
             sens = ctx.sensors[cols]
             uniq, inv = np.unique(sens, return_inverse=True)
-            d = self.K.ray_model_grid(
-                xy[:, 0], xy[:, 1], ctx.heading, self.mounts[uniq], self.psi, self.rmax_ray,
-                self.thr, self.sensor.min_range_m, self.grid,
-            )  # fmt: skip
+            if self.lever is None:
+                d = self._rays(xy[:, 0], xy[:, 1], ctx.heading, self.mounts[uniq])
+            else:  # each sensor's rays start at its lever arm, turned with the heading
+                c, s = math.cos(ctx.heading), math.sin(ctx.heading)
+                d = np.empty((n, uniq.size))
+                for j, u in enumerate(uniq.tolist()):
+                    lx, ly = self.lever[u]
+                    ox, oy = xy[:, 0] + (c * lx - s * ly), xy[:, 1] + (s * lx + c * ly)
+                    d[:, j] = self._rays(ox, oy, ctx.heading, self.mounts[u : u + 1])[:, 0]
             out[:, cols] = d[:, inv]
         return out
+
+    def _rays(self, px: np.ndarray, py: np.ndarray, heading: float, mounts: np.ndarray):
+        return self.K.ray_model_grid(
+            px, py, heading, mounts, self.psi, self.rmax_ray, self.thr,
+            self.sensor.min_range_m, self.grid,
+        )  # fmt: skip
 
 
 def _readings(steps: StepLog, ranges: RangeLog | None, n_mounts: int, cfg: ParticleConfig):

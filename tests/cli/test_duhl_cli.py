@@ -76,7 +76,7 @@ def log1(files):
 
 
 def _track(log, bcn, *extra, filt="duhl"):
-    return run(["track", "--filter", filt, log, "--beacons", bcn, *extra])
+    return run(["track", filt, log, "--beacons", bcn, *extra])
 
 
 # --- track --filter duhl / duhl-ranges -------------------------------------------------------
@@ -198,11 +198,11 @@ def test_filter_options_change_the_track(log1):
     assert ok(_track(*log1, "--no-gate")).stdout == base
 
 
-def test_cli_defaults_match_the_library():
-    from rangekit_cli.track_cmd import DUHL_DEFAULTS
-
+def test_help_shows_the_library_defaults():
     cfg = DUHLConfig()
-    assert {k: getattr(cfg, k) for k in DUHL_DEFAULTS} == DUHL_DEFAULTS
+    text = " ".join(ok(run(["track", "duhl", "--help"])).stdout.split())
+    for v in (cfg.wheel_base_m, cfg.sigma_d_m, cfg.k_v_m):
+        assert f"[{v:g}" in text, v
 
 
 def test_output_file(tmp_path, log1):
@@ -214,9 +214,11 @@ def test_output_file(tmp_path, log1):
 
 
 def test_help_lists_the_duhl_options():
-    r = ok(run(["track", "--help"]))
-    for opt in ("duhl-ranges", "--beacons", "--initial-pose", "--wheel-base", "--sigma-d", "--k-v"):
-        assert opt in r.stdout, opt
+    assert "duhl-ranges" in ok(run(["track", "--help"])).stdout
+    for filt in ("duhl", "duhl-ranges"):
+        r = ok(run(["track", filt, "--help"]))
+        for opt in ("--beacons", "--rig", "--initial-pose", "--wheel-base", "--sigma-d", "--k-v"):
+            assert opt in r.stdout, opt
 
 
 # --- track: errors -------------------------------------------------------------------------
@@ -242,8 +244,8 @@ def test_help_lists_the_duhl_options():
 def test_option_not_for_this_filter(tmp_path, filt, extra, named):
     out = tmp_path / "out.csv"
     out.write_text(SENTINEL)
-    r = run(["track", "--filter", filt, tmp_path / "any.csv", *extra, "-o", out])
-    assert_error(r, 2, named, "rangekit track --help")
+    r = run(["track", filt, tmp_path / "any.csv", *extra, "-o", out])
+    assert_error(r, 2, named, f"rangekit track {filt} --help")
     assert out.read_text() == SENTINEL
 
 

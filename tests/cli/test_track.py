@@ -58,7 +58,7 @@ def _n_data_rows(path) -> int:
 
 
 def test_range_ekf_csv(jiang_log):
-    r = ok(run(["track", "--filter", "range-ekf", jiang_log]))
+    r = ok(run(["track", "range-ekf", jiang_log]))
     header, rows = _csv(r.stdout)
     assert header == list(EKF_COLUMNS)
     times = sorted({float(row[0]) for row in rows})
@@ -76,8 +76,8 @@ def test_range_ekf_csv(jiang_log):
 
 
 def test_range_ekf_smooth_differs(jiang_log):
-    filt = ok(run(["track", "--filter", "range-ekf", jiang_log])).stdout
-    smooth = ok(run(["track", "--filter", "range-ekf", jiang_log, "--smooth"])).stdout
+    filt = ok(run(["track", "range-ekf", jiang_log])).stdout
+    smooth = ok(run(["track", "range-ekf", jiang_log, "--smooth"])).stdout
     hf, rf = _csv(filt)
     hs, rs = _csv(smooth)
     assert hf == hs and len(rf) == len(rs)
@@ -97,7 +97,7 @@ def test_range_ekf_json_and_rejected(tmp_path, jiang_text):
     lines[k] = ",".join(cells)
     log = tmp_path / "nlos.csv"
     log.write_text("\n".join(lines) + "\n")
-    r = ok(run(["track", "--filter", "range-ekf", log, "--format", "json"]))
+    r = ok(run(["track", "range-ekf", log, "--format", "json"]))
     obj = json.loads(r.stdout)
     assert obj["columns"] == list(EKF_COLUMNS)
     assert obj["filter"] == "range-ekf"
@@ -111,23 +111,23 @@ def test_range_ekf_json_and_rejected(tmp_path, jiang_text):
         assert set(x) == {"t_s", "a", "b", "range_m", "nis"}
     assert f"{len(rej)} ranges rejected" in r.stderr
     # Without the gate nothing is rejected.
-    r = ok(run(["track", "--filter", "range-ekf", log, "--format", "json", "--no-gate"]))
+    r = ok(run(["track", "range-ekf", log, "--format", "json", "--no-gate"]))
     assert json.loads(r.stdout)["rejected"] == []
 
 
 def test_range_ekf_filter_options(jiang_log):
-    base = ok(run(["track", "--filter", "range-ekf", jiang_log])).stdout
+    base = ok(run(["track", "range-ekf", jiang_log])).stdout
     for extra in (["--accel-psd", "0.5"], ["--cross-sign", "paper"], ["--gate", "0.9"]):
-        out = ok(run(["track", "--filter", "range-ekf", jiang_log, *extra])).stdout
+        out = ok(run(["track", "range-ekf", jiang_log, *extra])).stdout
         assert _csv(out)[0] == list(EKF_COLUMNS), extra
         assert len(_csv(out)[1]) == len(_csv(base)[1]), extra
-    out = ok(run(["track", "--filter", "range-ekf", jiang_log, "--accel-psd", "0.5"])).stdout
+    out = ok(run(["track", "range-ekf", jiang_log, "--accel-psd", "0.5"])).stdout
     assert out != base
 
 
 def test_output_file(tmp_path, jiang_log):
     out = tmp_path / "track.csv"
-    r = ok(run(["track", "--filter", "range-ekf", jiang_log, "-o", out]))
+    r = ok(run(["track", "range-ekf", jiang_log, "-o", out]))
     assert r.stdout == ""
     assert _csv(out.read_text())[0] == list(EKF_COLUMNS)
 
@@ -136,24 +136,24 @@ def test_output_file(tmp_path, jiang_log):
 
 
 def test_dead_reckoning(imu_log):
-    r = ok(run(["track", "--filter", "dead-reckoning", imu_log]))
+    r = ok(run(["track", "dead-reckoning", imu_log]))
     header, rows = _csv(r.stdout)
     assert header == list(deadreckoning.TRACK_COLUMNS)
     assert len(rows) == _n_data_rows(imu_log) == N_IMU
-    s = ok(run(["track", "--filter", "dead-reckoning", imu_log, "--smooth"]))
+    s = ok(run(["track", "dead-reckoning", imu_log, "--smooth"]))
     hs, rs = _csv(s.stdout)
     assert hs == header and len(rs) == len(rows)
     assert not np.allclose(np.array(rows, dtype=float), np.array(rs, dtype=float))
-    j = ok(run(["track", "--filter", "dead-reckoning", imu_log, "--format", "json"]))
+    j = ok(run(["track", "dead-reckoning", imu_log, "--format", "json"]))
     obj = json.loads(j.stdout)
     assert obj["columns"] == header and len(obj["rows"]) == N_IMU
     assert "rejected" not in obj
-    g = ok(run(["track", "--filter", "dead-reckoning", imu_log, "--gate", "0.99"]))
+    g = ok(run(["track", "dead-reckoning", imu_log, "--gate", "0.99"]))
     assert _csv(g.stdout)[0] == header
 
 
 def test_lmax_online_and_offline(position_log):
-    r = ok(run(["track", "--filter", "lmax", position_log, "--l-max", "0.8"]))
+    r = ok(run(["track", "lmax", position_log, "--l-max", "0.8"]))
     header, rows = _csv(r.stdout)
     assert header == list(lmax.TRACK_COLUMNS)
     assert len(rows) == _n_data_rows(position_log) == N_FIXES
@@ -162,19 +162,19 @@ def test_lmax_online_and_offline(position_log):
     np.testing.assert_allclose(online[0, 1:], meas[0])  # anchored at the first fix
     # --i-star is 1-based like the paper: the estimate at row i* is fix i*.
     i_star = 10
-    r = ok(run(["track", "--filter", "lmax", position_log, "--l-max", "0.8", "--i-star",
+    r = ok(run(["track", "lmax", position_log, "--l-max", "0.8", "--i-star",
                   i_star]))  # fmt: skip
     off = np.array(_csv(r.stdout)[1], dtype=float)
     np.testing.assert_allclose(off[i_star - 1, 1:], meas[i_star - 1])
     expected = lmax.lmax_offline(meas, l_max_m=0.8, i_star=i_star - 1)
     np.testing.assert_allclose(off[:, 1:], expected)
     # --i-star 1 is the online filter.
-    r = ok(run(["track", "--filter", "lmax", position_log, "--l-max", "0.8", "--i-star", 1]))
+    r = ok(run(["track", "lmax", position_log, "--l-max", "0.8", "--i-star", 1]))
     np.testing.assert_allclose(np.array(_csv(r.stdout)[1], dtype=float), online)
 
 
 def test_lmax_i_star_beyond_the_fixes(position_log):
-    args = ["track", "--filter", "lmax", position_log, "--l-max", "1", "--i-star", N_FIXES + 1]
+    args = ["track", "lmax", position_log, "--l-max", "1", "--i-star", N_FIXES + 1]
     assert_error(run(args), 2, "--i-star", str(N_FIXES + 1), str(N_FIXES))
     ok(run([*args[:-1], N_FIXES]))
 
@@ -200,8 +200,8 @@ def test_lmax_i_star_beyond_the_fixes(position_log):
 )
 def test_option_not_for_this_filter(tmp_path, filt, extra, named):
     out = tmp_path / "out.csv"
-    r = run(["track", "--filter", filt, tmp_path / "any.csv", *extra, "-o", out])
-    assert_error(r, 2, named, "rangekit track --help")
+    r = run(["track", filt, tmp_path / "any.csv", *extra, "-o", out])
+    assert_error(r, 2, named, f"rangekit track {filt} --help")
     assert not out.exists()
 
 
@@ -217,11 +217,12 @@ def test_option_not_for_this_filter(tmp_path, filt, extra, named):
     ],
 )
 def test_bad_option_values(jiang_log, extra, named):
-    assert_error(run(["track", "--filter", "range-ekf", jiang_log, *extra]), 2, named)
+    assert_error(run(["track", "range-ekf", jiang_log, *extra]), 2, named)
 
 
 def test_missing_or_unknown_filter(jiang_log):
-    assert_error(run(["track", jiang_log]), 2, "--filter")
+    assert_error(run(["track", jiang_log]), 2, "no tracking filter", jiang_log.name, "range-ekf")
+    assert_error(run(["track", "kalman", jiang_log]), 2, "kalman", "range-ekf")
     assert_error(run(["track", "--filter", "kalman", jiang_log]), 2, "--filter", "kalman")
 
 
@@ -263,7 +264,7 @@ def test_bad_measurement_log(tmp_path, jiang_text, case):
         (text, row), col = _edit_range_row(jiang_text, "sigma_m", "-0.1"), "sigma_m"
     log = tmp_path / "bad_log.csv"
     log.write_text(text)
-    line = assert_error(run(["track", "--filter", "range-ekf", log]), 4, "bad_log.csv", col)
+    line = assert_error(run(["track", "range-ekf", log]), 4, "bad_log.csv", col)
     assert f"row {row}" in line, line
 
 
@@ -278,21 +279,21 @@ def test_bad_imu_and_position_logs(tmp_path, request, filt, extra, fixture, col)
     text = request.getfixturevalue(fixture).read_text()
     bad = tmp_path / "bad.csv"
     bad.write_text(_drop_column(text, col))
-    assert_error(run(["track", "--filter", filt, bad, *extra]), 4, "bad.csv", col, "row")
+    assert_error(run(["track", filt, bad, *extra]), 4, "bad.csv", col, "row")
     lines = text.splitlines()
     k = next(i for i, ln in enumerate(lines) if ln and not ln.startswith("#")) + 3
     cells = lines[k].split(",")
     cells[1] = "nan"
     lines[k] = ",".join(cells)
     bad.write_text("\n".join(lines) + "\n")
-    assert_error(run(["track", "--filter", filt, bad, *extra]), 4, f"row {k + 1}")
+    assert_error(run(["track", filt, bad, *extra]), 4, f"row {k + 1}")
 
 
 @pytest.mark.parametrize("filt", ["range-ekf", "dead-reckoning", "lmax"])
 def test_missing_log_file(tmp_path, filt):
     extra = ["--l-max", "1"] if filt == "lmax" else []
     missing = tmp_path / "no_such_log.csv"
-    assert_error(run(["track", "--filter", filt, missing, *extra]), 3, "no_such_log.csv")
+    assert_error(run(["track", filt, missing, *extra]), 3, "no_such_log.csv")
 
 
 def test_failed_run_leaves_existing_output_untouched(tmp_path, jiang_text):
@@ -301,11 +302,11 @@ def test_failed_run_leaves_existing_output_untouched(tmp_path, jiang_text):
     text, _ = _edit_range_row(jiang_text, "sigma_m", "-0.1")
     log = tmp_path / "bad.csv"
     log.write_text(text)
-    r = run(["track", "--filter", "range-ekf", log, "-o", sentinel])
+    r = run(["track", "range-ekf", log, "-o", sentinel])
     assert_error(r, 4, "bad.csv")
     assert r.stdout == ""
     assert sentinel.read_text() == "SENTINEL, do not touch\n"
-    r = run(["track", "--filter", "range-ekf", tmp_path / "missing.csv", "-o", sentinel])
+    r = run(["track", "range-ekf", tmp_path / "missing.csv", "-o", sentinel])
     assert_error(r, 3, "missing.csv")
     assert sentinel.read_text() == "SENTINEL, do not touch\n"
     assert sorted(p.name for p in tmp_path.iterdir() if p.name.startswith(".")) == []
@@ -313,12 +314,12 @@ def test_failed_run_leaves_existing_output_untouched(tmp_path, jiang_text):
 
 def test_output_into_missing_folder(tmp_path, jiang_log):
     out = tmp_path / "no_such_dir" / "track.csv"
-    assert_error(run(["track", "--filter", "range-ekf", jiang_log, "-o", out]), 3, "no_such_dir")
+    assert_error(run(["track", "range-ekf", jiang_log, "-o", out]), 3, "no_such_dir")
 
 
 def test_debug_propagates(tmp_path):
     from rangekit.errors import InputFileError
 
-    r = run(["track", "--filter", "range-ekf", tmp_path / "missing.csv", "--debug"])
+    r = run(["track", "range-ekf", tmp_path / "missing.csv", "--debug"])
     assert isinstance(r.exception, InputFileError)
     assert "rangekit: error:" not in r.stderr

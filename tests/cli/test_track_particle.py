@@ -1,4 +1,4 @@
-"""CLI tests of ``rangekit track --filter particle`` on the simulated Girard 2011 walk."""
+"""CLI tests of ``rangekit track particle`` on the simulated Girard 2011 walk."""
 
 from __future__ import annotations
 
@@ -9,8 +9,9 @@ import json
 import numpy as np
 import pytest
 from clihelp import assert_error, ok, run
-from rangekit_cli.track_cmd import PARTICLE_COLUMNS
 
+from rangekit.localize import particle as P
+from rangekit.localize.particle import TRACK_COLUMNS as PARTICLE_COLUMNS
 from rangekit.localize.particle import ParticleConfig, track_particles, tracking_error
 from rangekit.sim import girard2011
 
@@ -41,7 +42,7 @@ def _table(text: str) -> tuple[list[str], np.ndarray]:
 
 
 def test_ranging_track_matches_library_and_truth(files, walk):
-    args = ["track", "--filter", "particle", "--map", files["plan"], "--steps", files["steps"]]
+    args = ["track", "particle", "--map", files["plan"], files["steps"]]
     args += ["--ranges", files["ranges"], "--start", _start(walk), "--seed", 7]
     r = ok(run(args))
     header, t = _table(r.stdout)
@@ -57,7 +58,7 @@ def test_ranging_track_matches_library_and_truth(files, walk):
 
 
 def test_mode_follows_the_inputs_and_json(files, walk):
-    base = ["track", "--filter", "particle", "--steps", files["steps"], "--start", _start(walk)]
+    base = ["track", "particle", files["steps"], "--start", _start(walk)]
     r = ok(run([*base, "--seed", 1, "--format", "json"]))
     obj = json.loads(r.stdout)
     assert obj["mode"] == "imu" and obj["method"] == "girard"
@@ -74,7 +75,7 @@ def test_mode_follows_the_inputs_and_json(files, walk):
 
 def test_sir_method_particles_and_mounts(files, walk):
     out = files["dir"] / "sir.csv"
-    args = ["track", "--filter", "particle", files["steps"], "--map", files["plan"]]
+    args = ["track", "particle", files["steps"], "--map", files["plan"]]
     args += ["--ranges", files["ranges"], "--start", _start(walk), "--method", "sir"]
     args += ["--particles", 400, "--mounts", "90,-90", "--seed", 2, "-o", out]
     r = ok(run(args))
@@ -101,7 +102,7 @@ def test_reinitialisation_is_a_warning(files, walk):
         rows.append(",".join(c))
     bad = files["dir"] / "turned.csv"
     bad.write_text("\n".join([text[0], *rows]) + "\n")
-    args = ["track", "--filter", "particle", "--map", files["plan"], "--steps", bad]
+    args = ["track", "particle", "--map", files["plan"], "--steps", bad]
     args += ["--start", _start(walk), "--seed", 0, "--format", "json"]
     r = ok(run(args))
     obj = json.loads(r.stdout)
@@ -143,51 +144,104 @@ def test_reinitialisation_is_a_warning(files, walk):
 )
 def test_usage_and_input_errors(files, extra, code, named):
     sub = {"PLAN": files["plan"], "RANGES": files["ranges"]}
-    args = ["track", "--filter", "particle", "--steps", files["steps"]]
+    args = ["track", "particle", files["steps"]]
     args += [sub.get(a, a) for a in extra]
     assert_error(run(args), code, named)
 
 
 def test_steps_once_and_options_of_other_filters(files):
-    args = ["track", "--filter", "particle", files["steps"], "--steps", files["steps"]]
+    args = ["track", "particle", files["steps"], "--steps", files["steps"]]
     assert_error(run([*args, "--start", "1,1"]), 2, "--steps")
-    args = ["track", "--filter", "particle", "--steps", files["steps"], "--start", "1,1"]
+    args = ["track", "particle", files["steps"], "--start", "1,1"]
     assert_error(run([*args, "--l-max", "1"]), 2, "--l-max")
-    assert_error(
-        run(["track", "--filter", "lmax", "x.csv", "--l-max", "1", "--map", "p"]), 2, "--map"
-    )
-    assert_error(run(["track", "--filter", "particle", "--start", "1,1"]), 2, "--steps")
-    assert_error(run(["track", "--filter", "range-ekf"]), 2, "LOG")
+    assert_error(run(["track", "lmax", "x.csv", "--l-max", "1", "--map", "p"]), 2, "--map")
+    assert_error(run(["track", "particle", "--start", "1,1"]), 2, "STEPS.csv")
+    assert_error(run(["track", "range-ekf"]), 2, "LOG")
 
 
 def test_bad_files(files, walk):
     d = files["dir"]
     start = ["--start", _start(walk)]
-    base = ["track", "--filter", "particle", *start]
+    base = ["track", "particle", *start]
     bad_plan = d / "bad_plan.json"
     plan = walk.plan.to_json()
     plan["walls"][0]["to"] = plan["walls"][0]["from"]  # zero-length wall
     bad_plan.write_text(json.dumps(plan))
-    assert_error(run([*base, "--steps", files["steps"], "--map", bad_plan]), 3, "bad_plan.json")
+    assert_error(run([*base, files["steps"], "--map", bad_plan]), 3, "bad_plan.json")
     bad_steps = d / "bad_steps.csv"
     lines = files["steps"].read_text().splitlines()
     lines[3] = lines[3].replace(lines[3].split(",")[1], "-1.0", 1)
     bad_steps.write_text("\n".join(lines) + "\n")
-    line = assert_error(run([*base, "--steps", bad_steps]), 4, "bad_steps.csv", "length_m")
+    line = assert_error(run([*base, bad_steps]), 4, "bad_steps.csv", "length_m")
     assert "row 4" in line
     bad_ranges = d / "bad_ranges.csv"
     lines = files["ranges"].read_text().splitlines()
     lines[2] = "0.1,7x,1.0"
     bad_ranges.write_text("\n".join(lines) + "\n")
-    args = [*base, "--steps", files["steps"], "--map", files["plan"], "--ranges", bad_ranges]
+    args = [*base, files["steps"], "--map", files["plan"], "--ranges", bad_ranges]
     assert_error(run(args), 4, "bad_ranges.csv", "sensor")
     missing = d / "no_steps.csv"
-    assert_error(run([*base, "--steps", missing]), 3, "no_steps.csv")
+    assert_error(run([*base, missing]), 3, "no_steps.csv")
 
 
 def test_failed_run_keeps_existing_output(files, walk):
     out = files["dir"] / "track.csv"
     out.write_text("SENTINEL\n")
-    args = ["track", "--filter", "particle", "--steps", files["dir"] / "missing.csv"]
+    args = ["track", "particle", files["dir"] / "missing.csv"]
     assert_error(run([*args, "--start", _start(walk), "-o", out]), 3, "missing.csv")
     assert out.read_text() == "SENTINEL\n"
+
+
+def _rig_file(path, tags, odometry="steps"):
+    doc = {
+        "format": "rangekit-rig",
+        "version": 1,
+        "units": "m",
+        "anchors": [{"id": 1, "x_m": 0.0, "y_m": 0.0}],
+        "body": {"tags": [{"id": i + 1, "x_m": x, "y_m": y} for i, (x, y) in enumerate(tags)]},
+        "odometry": {"type": odometry},
+    }
+    path.write_text(json.dumps(doc))
+    return path
+
+
+def test_rig_gives_the_sensor_axes_and_lever_arms(files, walk):
+    rig = _rig_file(files["dir"] / "rig.json", [(0.0, 0.15), (0.0, -0.15)])
+    args = ["track", "particle", files["steps"], "--map", files["plan"], "--ranges"]
+    args += [files["ranges"], "--start", _start(walk), "--seed", 7, "--format", "json"]
+    got = json.loads(ok(run([*args, "--rig", rig])).stdout)
+    assert got["rig"] == str(rig)
+    assert got["mounts_deg"] == [90.0, -90.0]
+    assert got["lever_arms_m"] == [[0.0, 0.15], [0.0, -0.15]]
+    # The CLI is the library: rig_config of the same rig, same seed, same numbers.
+    from rangekit.rig import read_rig
+
+    cfg = P.rig_config(read_rig(rig))
+    lib = track_particles(walk.plan, walk.steps, walk.ranges, walk.start_m, cfg, rng=7)
+    np.testing.assert_allclose(np.array(got["rows"])[:, 1:3], lib.xy_m, rtol=0, atol=1e-9)
+    plain = json.loads(ok(run(args)).stdout)
+    assert plain["rows"] != got["rows"] and plain["lever_arms_m"] is None
+
+
+@pytest.mark.parametrize(
+    ("tags", "odometry", "extra", "named"),
+    [
+        ([(0.0, 0.0), (0.0, -0.15)], "steps", [], "body centre"),
+        ([(0.0, 0.15), (0.0, -0.15)], "none", [], "'none'"),
+        ([(0.0, 0.15)], "steps", [], "1 tag(s)"),  # the range log has sensors 0 and 1
+        ([(0.0, 0.15), (0.0, -0.15)], "steps", ["--mounts", "90"], "1 mount angle(s)"),
+    ],
+)
+def test_rig_that_does_not_fit_is_exit_5(files, walk, tags, odometry, extra, named):
+    rig = _rig_file(files["dir"] / "rig.json", tags, odometry)
+    args = ["track", "particle", files["steps"], "--map", files["plan"], "--ranges"]
+    args += [files["ranges"], "--start", _start(walk), "--rig", rig, *extra]
+    assert_error(run(args), 5, "rig.json", named)
+
+
+def test_particle_count_bound(files, walk):
+    args = ["track", "particle", files["steps"], "--start", _start(walk)]
+    line = assert_error(run([*args, "--particles", P.MAX_PARTICLES + 1]), 2, "--particles")
+    assert f"{P.MAX_PARTICLES}" in line
+    help_text = " ".join(ok(run(["track", "particle", "--help"])).stdout.split())
+    assert f"at most {P.MAX_PARTICLES:,}" in help_text

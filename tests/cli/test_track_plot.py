@@ -54,7 +54,7 @@ def test_plot_track_reads_every_track_output(inputs, tmp_path):
     for i, (filt, *args) in enumerate(_cases(inputs)):
         for fmt in ("csv", "json"):
             trk = tmp_path / f"t{i}.{fmt}"
-            ok(run(["track", "--filter", filt, *args, "--format", fmt, "-o", trk]))
+            ok(run(["track", filt, *args, "--format", fmt, "-o", trk]))
             png = tmp_path / f"t{i}_{fmt}.png"
             ok(run(["plot", "track", trk, "--ellipses", 3, "-o", png]))
             assert png.stat().st_size > 5000
@@ -66,7 +66,7 @@ def test_smoothed_variances_are_positive_and_below_the_same_branch(inputs, tmp_p
     """The issue's recipe: ``--smooth`` wrote var_x_m2 = -7.56 (seed 1)."""
     for seed in (1, 2, 4):
         out = tmp_path / f"s{seed}.json"
-        r = ok(run(["track", "--filter", "range-ekf", inputs[f"walk{seed}"], "--smooth",
+        r = ok(run(["track", "range-ekf", inputs[f"walk{seed}"], "--smooth",
                     "--format", "json", "-o", out]))  # fmt: skip
         js = json.loads(out.read_text())
         rows = np.array(js["rows"], dtype=float)
@@ -79,7 +79,7 @@ def test_smoothed_variances_are_positive_and_below_the_same_branch(inputs, tmp_p
 
 def test_range_ekf_json_reports_branch_probabilities(inputs, tmp_path):
     out = tmp_path / "b.json"
-    ok(run(["track", "--filter", "range-ekf", inputs["walk1"], "--format", "json", "-o", out]))
+    ok(run(["track", "range-ekf", inputs["walk1"], "--format", "json", "-o", out]))
     js = json.loads(out.read_text())
     p = np.array(js["p_branch"])
     assert p.size == len(js["rows"]) and np.all((p >= 0) & (p <= 1 + 1e-12))

@@ -35,7 +35,7 @@ def _table(text):
 
 
 def test_csv_follows_the_truth_and_reports(log, sim):
-    r = ok(run(["track", "--filter", "range-ekf", "--rig", SQUARE, log]))
+    r = ok(run(["track", "range-ekf", "--rig", SQUARE, log]))
     cols, rows = _table(r.stdout)
     assert cols[:4] == ["t_s", "x_m", "y_m", "heading_rad"] and cols[-1] == "n_hypotheses"
     err = np.hypot(*(rows[:, 1:3] - sim.truth_xy(rows[:, 0])).T)
@@ -48,7 +48,7 @@ def test_json_biases_downweighted_smooth_and_plot(tmp_path, log, sim):
     out = tmp_path / "t.json"
     p0 = sim.truth_pose([0.0])[0]
     pose = f"{p0[0]},{p0[1]},{np.degrees(p0[2])}"
-    ok(run(["track", "--filter", "range-ekf", "--rig", SQUARE, log, "--initial-pose", pose,
+    ok(run(["track", "range-ekf", "--rig", SQUARE, log, "--initial-pose", pose,
             "--smooth", "--robust", "student-t", "--format", "json", "-o", out]))  # fmt: skip
     js = json.loads(out.read_text())
     assert js["start"] == "given" and js["robust"] == "student-t" and js["smoothed"]
@@ -69,7 +69,7 @@ def test_kim_rig_on_a_kim_log(tmp_path):
     r = simulate(1, t_max_s=8.0, rng=1)
     p = tmp_path / "run.csv"
     r.to_log().to_csv(p)
-    res = ok(run(["track", "--filter", "range-ekf", "--rig", RIGS / "kim2013.json", p]))
+    res = ok(run(["track", "range-ekf", "--rig", RIGS / "kim2013.json", p]))
     _, rows = _table(res.stdout)
     truth = np.column_stack([np.interp(rows[:, 0], r.t_s, r.true_pose[:, c]) for c in (0, 1)])
     assert np.max(np.hypot(*(rows[-10:, 1:3] - truth[-10:]).T)) < 0.05
@@ -85,12 +85,12 @@ def test_kim_rig_on_a_kim_log(tmp_path):
     ],
 )
 def test_usage_errors(log, extra, named):
-    assert_error(run(["track", "--filter", "range-ekf", "--rig", SQUARE, log, *extra]), 2, named)
+    assert_error(run(["track", "range-ekf", "--rig", SQUARE, log, *extra]), 2, named)
 
 
 def test_rig_options_need_a_rig(log):
-    assert_error(run(["track", "--filter", "range-ekf", log, "--robust", "huber"]), 2, "--rig")
-    assert_error(run(["track", "--filter", "lmax", log, "--rig", SQUARE]), 2, "--rig")
+    assert_error(run(["track", "range-ekf", log, "--robust", "huber"]), 2, "--rig")
+    assert_error(run(["track", "lmax", log, "--rig", SQUARE]), 2, "--rig")
 
 
 def test_bad_rig_file(tmp_path, log):
@@ -98,9 +98,9 @@ def test_bad_rig_file(tmp_path, log):
     del doc["anchors"][2]["y_m"]
     bad = tmp_path / "rig.json"
     bad.write_text(json.dumps(doc))
-    assert_error(run(["track", "--filter", "range-ekf", "--rig", bad, log]), 3, "rig.json",
+    assert_error(run(["track", "range-ekf", "--rig", bad, log]), 3, "rig.json",
                  "anchors[2]: missing key 'y_m'")  # fmt: skip
-    assert_error(run(["track", "--filter", "range-ekf", "--rig", tmp_path / "no.json", log]), 3,
+    assert_error(run(["track", "range-ekf", "--rig", tmp_path / "no.json", log]), 3,
                  "no.json")  # fmt: skip
 
 
@@ -109,21 +109,21 @@ def test_log_that_does_not_fit_the_rig(tmp_path, log):
     doc["anchors"] = doc["anchors"][:3]
     three = tmp_path / "three.json"
     three.write_text(json.dumps(doc))
-    assert_error(run(["track", "--filter", "range-ekf", "--rig", three, log]), 5, "robot.csv",
+    assert_error(run(["track", "range-ekf", "--rig", three, log]), 5, "robot.csv",
                  "names anchor 4")  # fmt: skip
     doc = json.loads(SQUARE.read_text())
     doc["odometry"] = {"type": "steps"}
     steps = tmp_path / "steps.json"
     steps.write_text(json.dumps(doc))
-    assert_error(run(["track", "--filter", "range-ekf", "--rig", steps, log]), 2, "--steps")
+    assert_error(run(["track", "range-ekf", "--rig", steps, log]), 2, "--steps")
     doc["odometry"] = {"type": "none"}
     steps.write_text(json.dumps(doc))
-    assert_error(run(["track", "--filter", "range-ekf", "--rig", steps, log]), 4,
+    assert_error(run(["track", "range-ekf", "--rig", steps, log]), 4,
                  "odometry rows in the log")  # fmt: skip
     lines = log.read_text().splitlines()
     keep = [ln for ln in lines if ",distance," not in ln]
     (tmp_path / "noranges.csv").write_text("\n".join(keep) + "\n")
-    assert_error(run(["track", "--filter", "range-ekf", "--rig", SQUARE,
+    assert_error(run(["track", "range-ekf", "--rig", SQUARE,
                       tmp_path / "noranges.csv"]), 4, "noranges.csv")  # fmt: skip
 
 
@@ -138,14 +138,12 @@ def test_duhl_reads_kims_rig_like_its_beacon_file(tmp_path):
     bcn = tmp_path / "beacons.json"
     bcn.write_text(json.dumps(r.beacons.to_json()))
     for filt in ("duhl", "duhl-ranges"):
-        a = _table(ok(run(["track", "--filter", filt, p, "--beacons", bcn])).stdout)[1]
-        b = _table(ok(run(["track", "--filter", filt, p, "--rig", RIGS / "kim2013.json"])).stdout)[
-            1
-        ]
+        a = _table(ok(run(["track", filt, p, "--beacons", bcn])).stdout)[1]
+        b = _table(ok(run(["track", filt, p, "--rig", RIGS / "kim2013.json"])).stdout)[1]
         assert a.shape == b.shape and np.allclose(a, b, rtol=0, atol=1e-9, equal_nan=True)
-    assert_error(run(["track", "--filter", "duhl", p, "--rig", SQUARE]), 5, "one_tag_square.json",
+    assert_error(run(["track", "duhl", p, "--rig", SQUARE]), 5, "one_tag_square.json",
                  "three receivers")  # fmt: skip
-    assert_error(run(["track", "--filter", "duhl", p, "--rig", SQUARE, "--beacons", bcn]), 2,
+    assert_error(run(["track", "duhl", p, "--rig", SQUARE, "--beacons", bcn]), 2,
                  "--beacons or --rig")  # fmt: skip
 
 
@@ -160,14 +158,14 @@ def test_walker_with_step_events(tmp_path):
     log, steps = tmp_path / "ranges.csv", tmp_path / "steps.csv"
     w.log.to_csv(log)
     steps.write_text(w.steps.to_csv())
-    r = ok(run(["track", "--filter", "range-ekf", "--rig", RIGS / "walker_steps.json", log,
+    r = ok(run(["track", "range-ekf", "--rig", RIGS / "walker_steps.json", log,
                 "--steps", steps]))  # fmt: skip
     _, rows = _table(r.stdout)
     err = np.hypot(*(rows[:, 1:3] - w.truth_xy(rows[:, 0])).T)
     assert np.sqrt(np.mean(err**2)) < 0.2  # measured 0.10
     assert np.all(np.isnan(rows[:, 3]))  # no heading state
-    assert_error(run(["track", "--filter", "range-ekf", "--rig", RIGS / "walker_steps.json",
+    assert_error(run(["track", "range-ekf", "--rig", RIGS / "walker_steps.json",
                       log]), 2, "--steps")  # fmt: skip
-    assert_error(run(["track", "--filter", "range-ekf", "--rig", SQUARE, log, "--steps", steps]),
+    assert_error(run(["track", "range-ekf", "--rig", SQUARE, log, "--steps", steps]),
                  2, "--steps")  # fmt: skip
-    assert_error(run(["track", "--filter", "range-ekf", log, "--steps", steps]), 2, "--rig")
+    assert_error(run(["track", "range-ekf", log, "--steps", steps]), 2, "--rig")

@@ -1,0 +1,166 @@
+"""Options and output shared by the ``rangekit track`` subcommands (written once here).
+
+Every option defaults to None: the value used when it is not given is the library's
+default, and the help text shows that default read from the library (:func:`default`).
+"""
+
+from __future__ import annotations
+
+import inspect
+import json
+import math
+from collections.abc import Callable
+
+import click
+from rangekit_cli._options import (
+    FiniteRange,
+    debug_option,
+    emit,
+    float_list,
+    format_choice,
+    output_option,
+)
+
+#: Track columns that hold whole numbers (written as integers).
+_INT_COLUMNS = frozenset({"target", "status", "n_particles", "n_hypotheses"})
+
+
+def default(fn: Callable, name: str):
+    """The default of keyword ``name`` of the library function ``fn`` (for help texts)."""
+    return inspect.signature(fn).parameters[name].default
+
+
+def log_argument(metavar: str = "LOG.csv", required: bool = True):
+    """The subcommand's input log (a path; read and checked by the library)."""
+    return click.argument("log", type=click.Path(dir_okay=True), metavar=metavar, required=required)
+
+
+def smooth_option(f):
+    """--smooth: the RTS-smoothed (offline) track instead of the causal filter's."""
+    return click.option(
+        "--smooth",
+        is_flag=True,
+        default=None,
+        help="Output the RTS-smoothed (offline) track instead of the causal filter's.",
+    )(f)
+
+
+def gate_options(library_default: float | None, per: str = ""):
+    """--gate P / --no-gate; ``library_default`` is the gate used without either."""
+    shown = "no gate" if library_default is None else f"{library_default:g}{per}"
+
+    def deco(f):
+        f = click.option(
+            "--no-gate",
+            "no_gate",
+            is_flag=True,
+            default=None,
+            help="Use every measurement (no innovation gate).",
+        )(f)
+        return click.option(
+            "--gate",
+            type=FiniteRange(0.0, 1.0, min_open=True, max_open=True),
+            default=None,
+            metavar="P",
+            help="Innovation gate probability in (0, 1): measurements beyond this "
+            f"chi-square quantile are rejected [{shown}].",
+        )(f)
+
+    return deco
+
+
+def gate_value(gate: float | None, no_gate: bool | None) -> dict:
+    """Keyword ``gate`` for the library: {} (its default), None (no gate) or the value."""
+    if gate is not None and no_gate:
+        raise click.UsageError("--gate and --no-gate exclude each other")
+    if no_gate:
+        return {"gate": None}
+    return {} if gate is None else {"gate": gate}
+
+
+def rig_option(help: str):
+    """--rig RIG.json (docs/rigs.md)."""
+    return click.option(
+        "--rig", type=click.Path(dir_okay=True), default=None, metavar="RIG.json", help=help
+    )
+
+
+def initial_pose_option(help: str):
+    """--initial-pose X,Y,DEG."""
+    return click.option(
+        "--initial-pose", "initial_pose", default=None, metavar="X,Y,DEG", help=help
+    )
+
+
+def output_options(f):
+    """--format csv|json, -o/--output, --debug: every track subcommand writes a track."""
+    return format_choice(("csv", "json"), "csv")(output_option(debug_option(f)))
+
+
+def parse_pose(text: str | None, n: int) -> list[float] | None:
+    """``--initial-pose``: ``X,Y,DEG`` as ``[x_m, y_m, heading_rad]`` (n=3) or ``X,Y`` (n=2)."""
+    vals = float_list(text, name="--initial-pose")
+    if vals is None:
+        return None
+    if len(vals) != n:
+        want = "X,Y,DEG (m, m, degrees)" if n == 3 else "X,Y (m)"
+        raise click.BadParameter(
+            f"{text!r} must be {n} numbers {want}, got {len(vals)}", param_hint="--initial-pose"
+        )
+    return [vals[0], vals[1], math.radians(vals[2])] if n == 3 else vals
+
+
+def num(v: float) -> float | None:
+    """A float for JSON (NaN and infinities as null)."""
+    f = float(v)
+    return f if math.isfinite(f) else None
+
+
+def _row(columns, values) -> list:
+    """One track row as Python values: ints for id columns, None for NaN (an empty cell)."""
+    out = []
+    for c, v in zip(columns, values, strict=True):
+        f = float(v)
+        if not math.isfinite(f):
+            out.append(None)
+        elif c in _INT_COLUMNS:
+            out.append(int(f))
+        else:
+            out.append(f)
+    return out
+
+
+def write_track(
+    columns,
+    rows,
+    *,
+    filter_name: str,
+    log: str,
+    fmt: str,
+    output: str | None,
+    smoothed: bool = False,
+    extra: dict | None = None,
+    summary: str | None = None,
+    notes: tuple[str, ...] | list[str] = (),
+) -> None:
+    """Print (or write to ``-o``) the track as CSV or JSON, then the summary and warnings."""
+    table = [_row(columns, r) for r in rows]
+    if fmt == "csv":
+        from rangekit.io.csvlog import write_table
+
+        text = write_table(columns, table)
+    else:
+        obj = {
+            "filter": filter_name,
+            "log": str(log),
+            "smoothed": bool(smoothed),
+            "columns": list(columns),
+            "rows": table,
+            **(extra or {}),
+        }
+        text = json.dumps(obj, indent=2) + "\n"
+    emit(text, output)
+    if summary:
+        click.echo(summary, err=True)
+    for note in notes:
+        click.echo(f"warning: {note}", err=True)

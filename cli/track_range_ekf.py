@@ -1,0 +1,213 @@
+"""``rangekit track range-ekf``: people from acoustic ranges (Jiang 2018), or a body
+against the fixed anchors of a rig file (``--rig``, docs/rigs.md)."""
+
+from __future__ import annotations
+
+import click
+from rangekit_cli._options import FiniteRange
+from rangekit_cli.track_common import (
+    default,
+    gate_options,
+    gate_value,
+    initial_pose_option,
+    log_argument,
+    num,
+    output_options,
+    parse_pose,
+    rig_option,
+    smooth_option,
+    write_track,
+)
+
+from rangekit.localize.anchor_ekf import track_anchors
+from rangekit.localize.range_ekf import track_ranges
+
+#: Options that apply only without / only with --rig.
+_NO_RIG = ("--accel-psd", "--gate", "--no-gate", "--cross-sign")
+_RIG_ONLY = ("--initial-pose", "--robust", "--steps")
+
+
+@click.command("range-ekf")
+@log_argument()
+@smooth_option
+@click.option(
+    "--accel-psd",
+    "accel_psd",
+    type=FiniteRange(0.0, None, min_open=True),
+    default=None,
+    metavar="FLOAT",
+    help="Spectral density of the targets' white acceleration, m²/s³ per axis "
+    f"[{default(track_ranges, 'accel_psd')}, walking people].",
+)
+@gate_options(default(track_ranges, "gate"), " per range")
+@click.option(
+    "--cross-sign",
+    "cross_sign",
+    type=click.Choice(["physical", "paper"]),
+    default=None,
+    help="Sign of the robot-pose cross-covariance of Jiang 2018 eq (12): the derived one, "
+    f"or the one the paper prints [{default(track_ranges, 'cross_sign')}].",
+)
+@rig_option(
+    "Track a body against the fixed anchors of this rig file (docs/rigs.md); LOG is then a "
+    "DUHL-format log of odometry and anchor ranges."
+)
+@click.option(
+    "--robust",
+    type=click.Choice(["huber", "student-t", "none"]),
+    default=None,
+    help=f"With --rig: weighting of ranges by their normalised innovation "
+    f"[{default(track_anchors, 'robust')}].",
+)
+@initial_pose_option(
+    "With --rig: the body's pose at the first odometry row (m, m, degrees; X,Y for a rig "
+    "without odometry). Without it the filter starts from the first ranges "
+    "(multilateration and a heading bank)."
+)
+@click.option(
+    "--steps",
+    type=click.Path(dir_okay=True),
+    default=None,
+    metavar="STEPS.csv",
+    help="With a step-odometry --rig: the step events t_s,length_m,heading_rad,"
+    "heading_sigma_rad (docs/formats.md).",
+)
+@output_options
+def range_ekf_cmd(log, smooth, accel_psd, gate, no_gate, cross_sign, rig, robust,
+                  initial_pose, steps, fmt, output):  # fmt: skip
+    """Positions of people from acoustic ranges (the EKF of Jiang 2018 §4.4).
+
+    LOG.csv is a measurement log (robot poses, relative fixes, ranges; docs/formats.md).
+    With --rig, LOG.csv is a DUHL-format log of odometry and ranges to the rig's fixed
+    anchors, and the body carrying the rig's tags is tracked (docs/rigs.md). Prints one
+    row per epoch (and target) as CSV, or JSON with "columns" and "rows", then a
+    one-line summary on stderr.
+
+    \b
+    Examples:
+      rangekit track range-ekf walk.csv --smooth -o track.csv
+      rangekit track range-ekf --rig docs/rigs/one_tag_square.json robot.csv -o track.csv
+    """
+    given = {
+        "--accel-psd": accel_psd is not None,
+        "--gate": gate is not None,
+        "--no-gate": bool(no_gate),
+        "--cross-sign": cross_sign is not None,
+        "--initial-pose": initial_pose is not None,
+        "--robust": robust is not None,
+        "--steps": steps is not None,
+    }
+    if rig is not None:
+        for opt in _NO_RIG:
+            if given[opt]:
+                raise click.UsageError(f"{opt} does not apply with --rig (robust weights, no gate)")
+        _with_rig(log, rig, initial_pose, robust, bool(smooth), steps, fmt, output)
+        return
+    for opt in _RIG_ONLY:
+        if given[opt]:
+            raise click.UsageError(f"{opt} applies to range-ekf only with --rig")
+    kw = gate_value(gate, no_gate)
+    if accel_psd is not None:
+        kw["accel_psd"] = accel_psd
+    if cross_sign is not None:
+        kw["cross_sign"] = cross_sign
+    _jiang(log, kw, bool(smooth), fmt, output)
+
+
+def _jiang(log, kw: dict, smooth: bool, fmt: str, output) -> None:
+    from rangekit.io.tracklog import read_measurement_log
+    from rangekit.localize.range_ekf import track_rows
+
+    name = str(log)
+    trk = track_ranges(read_measurement_log(log, name=name), smooth=smooth, name=name, **kw)
+    columns, rows = track_rows(trk, smoothed=smooth)
+    n_reinit = int(trk.n_reinit.sum())
+    summary = (
+        f"range-ekf: {trk.t_s.size} epochs, {trk.n_targets} targets, "
+        f"{len(trk.rejected)} ranges rejected by the gate, {n_reinit} targets re-opened, "
+        f"{trk.n_skipped} epochs skipped before the start"
+    )
+    extra = {
+        "rejected": [
+            {"t_s": r.t_s, "a": r.a, "b": r.b, "range_m": num(r.range_m), "nis": num(r.nis)}
+            for r in trk.rejected
+        ],
+        "n_targets": int(trk.n_targets),
+        "n_reinit": n_reinit,
+        "n_skipped": int(trk.n_skipped),
+        # one per row: the probability that the target is near the filtered position
+        # rather than on another branch of the bank (its mirror image)
+        "p_branch": [float(p) for p in trk.p_branch.reshape(-1)],
+    }
+    if smooth:
+        other = int(trk.same_line.size - trk.same_line.sum())
+        extra["n_epochs_other_branch"] = other
+        summary += (
+            f"; smoothed along the final best branch ({other} epochs where the causal "
+            "filter reported another)"
+        )
+    write_track(columns, rows, filter_name="range-ekf", log=name, fmt=fmt, output=output,
+                smoothed=smooth, extra=extra, summary=summary)  # fmt: skip
+
+
+def _with_rig(log, rig_path, initial_pose, robust, smooth, steps, fmt, output) -> None:
+    """Fixed-anchor tracking (rangekit.localize.anchor_ekf) of a DUHL-format log."""
+    from rangekit.io.duhllog import read_duhl_log
+    from rangekit.localize.anchor_ekf import track_rows
+    from rangekit.rig import read_rig
+
+    rig = read_rig(rig_path)
+    pose0 = parse_pose(initial_pose, 3 if rig.odometry.kind == "differential-drive" else 2)
+    name = str(log)
+    dlog = read_duhl_log(log, name=name)
+    slog = None
+    if rig.odometry.kind == "steps":
+        if steps is None:
+            raise click.UsageError(
+                f"the rig {rig_path} has step odometry: give the step log (--steps STEPS.csv)"
+            )
+        from rangekit.io.steplog import read_step_log
+
+        slog = read_step_log(steps, name=str(steps))
+    elif steps is not None:
+        raise click.UsageError(
+            f"--steps needs a rig with step odometry ({rig_path} has {rig.odometry.kind!r})"
+        )
+    kw = {} if robust is None else {"robust": robust}
+    trk = track_anchors(dlog, rig, initial_pose=pose0, smooth=smooth, steps=slog, name=name, **kw)
+    robust = kw.get("robust", default(track_anchors, "robust"))
+    columns, rows = track_rows(trk, smoothed=smooth)
+    bias_txt = ", ".join(
+        f"{int(a)}: {b:+.3f}±{s:.3f}"
+        for a, b, s in zip(trk.anchor_ids, trk.bias_m, trk.bias_sigma_m, strict=True)
+    )
+    summary = (
+        f"range-ekf (rig {rig_path}): {trk.t_s.size} distance rows from t_s={trk.t_s[0]:g} "
+        f"(start: {trk.start}), {len(trk.downweighted)} ranges down-weighted ({robust}); "
+        f"range bias m per anchor {bias_txt}"
+    )
+    extra = {
+        "rig": str(rig_path),
+        "robust": robust,
+        "start": trk.start,
+        "start_t_s": float(trk.start_t_s),
+        "initial_pose": pose0,
+        "biases": [
+            {"anchor": int(a), "bias_m": float(b), "sigma_m": float(s)}
+            for a, b, s in zip(trk.anchor_ids, trk.bias_m, trk.bias_sigma_m, strict=True)
+        ],
+        "downweighted": [
+            {
+                "t_s": d.t_s,
+                "anchor": d.anchor,
+                "tag": d.tag,
+                "range_m": d.range_m,
+                "residual_m": d.residual_m,
+                "nu": d.nu,
+                "weight": d.weight,
+            }
+            for d in trk.downweighted
+        ],
+    }
+    write_track(columns, rows, filter_name="range-ekf", log=name, fmt=fmt, output=output,
+                smoothed=smooth, extra=extra, summary=summary)  # fmt: skip

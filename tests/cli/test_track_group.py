@@ -1,0 +1,90 @@
+"""``rangekit track`` as a click group: bare help, one subcommand per filter with only its
+own options, library defaults in the help, and the deprecated ``--filter NAME`` form."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+from clihelp import assert_error, ok, run
+
+from rangekit.sim import ahn2007
+
+CLI = Path(__file__).resolve().parents[2] / "cli"
+FILTERS = ("range-ekf", "dead-reckoning", "lmax", "duhl", "duhl-ranges", "particle")
+
+
+@pytest.fixture
+def fixes(tmp_path):
+    p = tmp_path / "fixes.csv"
+    p.write_text(ahn2007.position_log_text(ahn2007.simulate_pedestrian(12, rng=3)))
+    return p
+
+
+def test_bare_track_prints_help_exit_0():
+    r = run(["track"])
+    assert r.exit_code == 0, r.stderr
+    for name in FILTERS:
+        assert name in r.stdout
+    assert ok(run(["track", "--help"])).stdout == r.stdout
+
+
+#: Options that must not show in a subcommand's help (they belong to other filters).
+FOREIGN = {
+    "range-ekf": ("--l-max", "--beacons", "--wheel-base", "--map", "--particles"),
+    "dead-reckoning": ("--accel-psd", "--cross-sign", "--rig", "--l-max", "--beacons"),
+    "lmax": ("--smooth", "--gate", "--accel-psd", "--beacons", "--map"),
+    "duhl": ("--smooth", "--accel-psd", "--robust", "--map", "--l-max"),
+    "duhl-ranges": ("--smooth", "--cross-sign", "--particles", "--steps"),
+    "particle": ("--gate", "--smooth", "--beacons", "--initial-pose", "--steps", "--l-max"),
+}
+
+
+@pytest.mark.parametrize("name", FILTERS)
+def test_each_subcommand_has_only_its_own_options(name):
+    text = ok(run(["track", name, "--help"])).stdout
+    assert f"rangekit track {name}" in text
+    for opt in FOREIGN[name]:
+        assert opt not in text, (name, opt)
+
+
+def test_help_shows_the_library_defaults():
+    from rangekit_cli.track_common import default
+
+    from rangekit.localize.particle import ParticleConfig
+    from rangekit.localize.range_ekf import track_ranges
+
+    text = " ".join(ok(run(["track", "range-ekf", "--help"])).stdout.split())
+    assert f"[{default(track_ranges, 'accel_psd')}," in text
+    assert f"[{default(track_ranges, 'gate'):g} per range]" in text
+    text = " ".join(ok(run(["track", "particle", "--help"])).stdout.split())
+    assert f"[{ParticleConfig().n_particles}, the paper's]" in text
+    assert f"[{ParticleConfig().method}]" in text
+
+
+def test_deprecated_filter_form_gives_the_same_track(fixes):
+    new = ok(run(["track", "lmax", fixes, "--l-max", "0.5"]))
+    assert new.stderr == ""
+    for args in (
+        ["track", "--filter", "lmax", fixes, "--l-max", "0.5"],
+        ["track", "--filter=lmax", fixes, "--l-max", "0.5"],
+        ["track", fixes, "--l-max", "0.5", "--filter", "lmax"],  # anywhere, as before
+    ):
+        old = ok(run(args))
+        assert old.stdout == new.stdout
+        lines = old.stderr.splitlines()
+        assert len(lines) == 1 and "deprecated" in lines[0], old.stderr
+        assert "'rangekit track lmax'" in lines[0]
+
+
+def test_deprecated_form_errors_stay_one_line(tmp_path):
+    r = run(["track", "--filter", "lmax", tmp_path / "no.csv", "--l-max", "1"])
+    assert_error(r, 3, "no.csv")
+    assert_error(run(["track", "--filter"]), 2, "--filter")
+    assert_error(run(["track", "--filter", "kalman", "x.csv"]), 2, "kalman", "range-ekf")
+    assert_error(run(["track", "--filter", "lmax", "x.csv", "--beacons", "b"]), 2, "--beacons")
+
+
+def test_modules_stay_small():
+    sizes = {p.name: len(p.read_text().splitlines()) for p in CLI.glob("track*.py")}
+    assert len(sizes) >= 5 and max(sizes.values()) <= 250, sizes
