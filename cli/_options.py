@@ -435,8 +435,20 @@ def check_outputs(paths) -> None:
         check_output(p, inputs)
 
 
+def _one_stdin(ctx: click.Context, kw: dict) -> None:
+    """Usage error when ``-`` (standard input) is given for more than one input."""
+    dashes = [p for p in input_paths(ctx, kw) if p == "-"]
+    if len(dashes) > 1:
+        raise click.UsageError(
+            "- (standard input) is given for more than one input: a command reads standard "
+            "input once; give the other inputs as files"
+        )
+
+
 def guard_output(ctx: click.Context, kw: dict) -> None:
     """Check ``-o`` before any work (every command, through :func:`debug_option`).
+
+    At most one input may be ``-`` (standard input is read once; a usage error else).
 
     ``-o -`` is standard output (``kw["output"]`` becomes None) where ``-o`` is
     optional, a usage error where the command must write a file. Otherwise the output
@@ -444,6 +456,7 @@ def guard_output(ctx: click.Context, kw: dict) -> None:
     any input (:func:`rangekit.io.guard.check_output`; exit 2), and its folder must exist
     (exit 3).
     """
+    _one_stdin(ctx, kw)
     out = kw.get("output")
     if out is None:
         return

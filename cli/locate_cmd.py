@@ -209,7 +209,7 @@ def _read_distances(path) -> tuple[list[int], list[list[float]], str]:
 
     spec = {"tx": Column(kind="int", nonneg=True)}
     spec.update({c: Column(nonneg=True) for c in DISTANCE_COLUMNS[1:]})
-    name = str(path)
+    name = "standard input" if str(path) == "-" else str(path)
     tab = read_table(path, spec, name=name, allow_extra=False)
     ids = [int(t) for t in tab["tx"].tolist()]
     seen: set[int] = set()
@@ -226,10 +226,13 @@ def _read_ranges(path):
 
     from rangekit.errors import LogFormatError
     from rangekit.io.csvlog import Column, read_table
+    from rangekit.io.guard import MAX_TABLE_BYTES, is_stdin, read_stdin
     from rangekit.localize.uhl_cov import uhl_inputs
 
-    name = str(path)
-    if name.endswith(".json"):
+    name = "standard input" if is_stdin(path) else str(path)
+    # Standard input is JSON when it starts with an object, else CSV.
+    stdin_json = is_stdin(path) and read_stdin(MAX_TABLE_BYTES).lstrip().startswith(b"{")
+    if name.endswith(".json") or stdin_json:
         from rangekit.io.sidecar import read_json
 
         obj = read_json(path)  # guarded: regular file, size, nesting, finite numbers

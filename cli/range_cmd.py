@@ -375,8 +375,12 @@ def _apply_setup(files, scheme, self_distance, temp_c, speed, cal, kw):
     """Options not given, from the setup of a sidecar that names exactly ``files``
     (:func:`rangekit.io.setup.find_setup`); says on stderr what it took. Returns the
     self-distance and temperature to use; fills ``kw`` (period, latency, tx order)."""
+    from rangekit.io.guard import is_stdin
     from rangekit.io.setup import find_setup
 
+    if any(is_stdin(f) for f in files):
+        detail("rangekit: setup: not searched for standard input (-)")
+        return self_distance, temp_c
     setup = find_setup(files)
     if setup is None:
         detail("rangekit: setup: no sidecar beside the recordings names exactly them")

@@ -5,6 +5,10 @@ that holds every sample exactly: integer PCM of up to 24 bits and 32-bit float f
 float64; :func:`load_devices` and :func:`read_frames` give float64); one WAV
 with N channels is N devices (channel i = device i); N mono WAVs are N devices (file i
 = device i). Files may differ in sample rate.
+
+The path ``-`` is standard input (``rangekit range - < x.wav``): read whole, at most
+the memory budget's share for raw bytes (:func:`stdin_limit`), then decoded and checked
+as a file is (:func:`rangekit.io.guard.read_stdin`).
 """
 
 from __future__ import annotations
@@ -96,6 +100,55 @@ def _size(n: int) -> str:
     return f"{n / 2**30:.2f} GiB" if n >= 2**30 else f"{n / 2**20:.1f} MiB"
 
 
+def _what(path: str | os.PathLike) -> str:
+    """How ``path`` is named in messages: ``'x.wav'``, or standard input for ``-``."""
+    from rangekit.io.guard import is_stdin
+
+    return "standard input" if is_stdin(path) else f"'{os.fspath(path)}'"
+
+
+def stdin_limit() -> int:
+    """Most bytes of a recording read from standard input: :func:`memory_budget` over
+    :data:`PEAK_FACTOR` (a recording of that many bytes of float64 samples would need the
+    whole budget; 1 TiB with no budget). The decoded samples are then checked by
+    :func:`check_memory` as a file's are."""
+    budget = memory_budget()
+    return 2**40 if budget is None else max(1, budget // PEAK_FACTOR)
+
+
+def _stdin_file():
+    """Standard input's bytes as a seekable file object, within :func:`stdin_limit`."""
+    import io
+
+    from rangekit.io.guard import read_stdin
+
+    data = read_stdin(
+        stdin_limit(),
+        error=IncompatibleInputError,
+        hint=" (the memory budget over 8): write it to a file and use `rangekit range "
+        f"--series`, or raise the budget (rangekit --memory-budget SIZE, or ${BUDGET_ENV})",
+    )
+    if not data:
+        raise AudioFormatError("standard input holds no data (nothing was piped in)")
+    return io.BytesIO(data)
+
+
+def _open_sf(path: str | os.PathLike):
+    """``(soundfile.SoundFile, name for messages)`` of ``path`` or of standard input."""
+    from rangekit.io.guard import is_stdin
+
+    sf = _sf()
+    stdin = is_stdin(path)
+    src = _stdin_file() if stdin else _sf_path(_readable(path))
+    what = _what(path)
+    try:
+        return sf.SoundFile(src), what
+    except sf.LibsndfileError as e:
+        raise AudioFormatError(f"{what} is not a readable audio file ({e.error_string})") from e
+    except (RuntimeError, TypeError, ValueError) as e:
+        raise AudioFormatError(f"{what} is not a readable audio file ({e})") from e
+
+
 def check_memory(
     path: str | os.PathLike, frames: int, channels: int, *, hint: str | None = None
 ) -> None:
@@ -110,7 +163,7 @@ def check_memory(
     need = int(frames) * int(channels) * 8 * PEAK_FACTOR
     if budget is not None and need > budget:
         raise IncompatibleInputError(
-            f"'{os.fspath(path)}': {frames} frames x {channels} channel(s) need about "
+            f"{_what(path)}: {frames} frames x {channels} channel(s) need about "
             f"{_size(need)} to process whole, more than the memory budget of "
             f"{_size(budget)}: {hint or 'use `rangekit range --series` (bounded memory)'}, "
             f"or raise the budget (rangekit --memory-budget SIZE, or ${BUDGET_ENV})"
@@ -129,7 +182,9 @@ def _sf_path(p: str | os.PathLike) -> str | bytes:
 
 
 def _name(f) -> str:
-    return os.fsdecode(f.name) if isinstance(f.name, bytes) else str(f.name)
+    if isinstance(f.name, bytes):
+        return os.fsdecode(f.name)
+    return f.name if isinstance(f.name, str) else "standard input"
 
 
 def _sf():
@@ -168,14 +223,18 @@ def read_audio(path: str | os.PathLike, *, dtype: str = "auto") -> tuple[np.ndar
         The file is missing, a directory, or cannot be read.
     AudioFormatError
         The file is not audio that libsndfile can decode, or holds no samples.
+    IncompatibleInputError
+        The recording needs more than the memory budget (:func:`check_memory`).
+
+    ``path`` ``-`` reads standard input (at most :func:`stdin_limit` bytes).
     """
     if dtype not in ("auto", "float32", "float64"):
         raise InvalidParameterError(f"dtype={dtype!r} must be 'auto', 'float32' or 'float64'")
-    p = _readable(path)
     sf = _sf()
+    f, p = _open_sf(path)
     try:
-        with sf.SoundFile(_sf_path(p)) as f:
-            check_memory(p, f.frames, f.channels)
+        with f:
+            check_memory(path, f.frames, f.channels)
             subtype = f.subtype
             if dtype == "auto":
                 dtype = "float32" if subtype in _EXACT_IN_FLOAT32 else "float64"
@@ -184,17 +243,17 @@ def read_audio(path: str | os.PathLike, *, dtype: str = "auto") -> tuple[np.ndar
     except RangekitError:
         raise
     except sf.LibsndfileError as e:
-        raise AudioFormatError(f"'{p}' is not a readable audio file ({e.error_string})") from e
+        raise AudioFormatError(f"{p} is not a readable audio file ({e.error_string})") from e
     except (RuntimeError, TypeError, ValueError) as e:
-        raise AudioFormatError(f"'{p}' is not a readable audio file ({e})") from e
+        raise AudioFormatError(f"{p} is not a readable audio file ({e})") from e
     if x.shape[0] == 0:
-        raise AudioFormatError(f"'{p}' holds no audio samples")
+        raise AudioFormatError(f"{p} holds no audio samples")
     # Integer samples are finite and within full scale: only float files need the
     # (whole-array) checks.
     if subtype in ("FLOAT", "DOUBLE") or not subtype.startswith(("PCM", "ALAW", "ULAW")):
         if not np.all(np.isfinite(x)):
-            raise AudioFormatError(f"'{p}' holds NaN or infinite samples")
-        _check_peak(x, f"'{p}'")
+            raise AudioFormatError(f"{p} holds NaN or infinite samples")
+        _check_peak(x, p)
     return x, float(fs)
 
 
@@ -220,21 +279,16 @@ def open_audio(path: str | os.PathLike):
         The file is missing, a directory, or cannot be read.
     AudioFormatError
         The file is not audio that libsndfile can decode, holds no samples, or cannot seek.
+
+    ``path`` ``-`` is standard input, held in memory (at most :func:`stdin_limit` bytes).
     """
-    p = _readable(path)
-    sf = _sf()
-    try:
-        f = sf.SoundFile(_sf_path(p))
-    except sf.LibsndfileError as e:
-        raise AudioFormatError(f"'{p}' is not a readable audio file ({e.error_string})") from e
-    except (RuntimeError, TypeError, ValueError) as e:
-        raise AudioFormatError(f"'{p}' is not a readable audio file ({e})") from e
+    f, p = _open_sf(path)
     if f.frames <= 0:
         f.close()
-        raise AudioFormatError(f"'{p}' holds no audio samples")
+        raise AudioFormatError(f"{p} holds no audio samples")
     if not f.seekable():
         f.close()
-        raise AudioFormatError(f"'{p}' cannot be read in blocks (the file is not seekable)")
+        raise AudioFormatError(f"{p} cannot be read in blocks (the file is not seekable)")
     return f
 
 

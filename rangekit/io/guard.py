@@ -12,7 +12,13 @@ Every file rangekit writes goes through :func:`atomic_output`: the data goes to 
 temporary file created exclusively (``tempfile.mkstemp``: ``O_CREAT | O_EXCL``, a
 random name, never following a link) in the target's folder, which is renamed over the
 target only when it is complete and removed on any failure (a full disk included), so
-an existing output is byte-identical after a failed run. :func:`check_output` refuses
+an existing output is byte-identical after a failed run.
+
+The path ``-`` is standard input (:func:`is_stdin`, :func:`read_stdin`): read once per
+process and kept, within the same size caps as a file (a JSON input over
+:data:`MAX_JSON_BYTES` is refused after that many bytes, without reading the rest); a
+terminal is refused instead of waiting for typing. A sidecar is never searched for
+``-``. :func:`check_output` refuses
 an output that is a symbolic link, a directory, a device or a FIFO, or the same file
 as one of the run's inputs. The rules are collected in ``docs/security.md``.
 
@@ -49,10 +55,12 @@ __all__ = [
     "atomic_output",
     "check_output",
     "default_mode",
+    "is_stdin",
     "parse_json",
     "printable",
     "read_capped",
     "read_json_file",
+    "read_stdin",
     "regular_file",
 ]
 
@@ -111,12 +119,92 @@ def regular_file(path: str | os.PathLike, *, what: str = "") -> os.stat_result:
     return st
 
 
+#: Name of standard input as a path (``rangekit range - < x.wav``).
+STDIN = "-"
+#: The standard input last read: (stream, bytes so far, whether its end was reached).
+_stdin_cache: tuple[object, bytes, bool] | None = None
+
+
+def is_stdin(path: object) -> bool:
+    """Whether ``path`` is ``-``, standard input (``./-`` is a file named ``-``)."""
+    try:
+        return os.fspath(path) == STDIN  # type: ignore[arg-type]
+    except TypeError:
+        return False
+
+
+def read_stdin(
+    limit: int, *, what: str = "", error: type[Exception] = InputFileError, hint: str = ""
+) -> bytes:
+    """All of standard input as bytes, refused once more than ``limit`` bytes arrive.
+
+    Standard input is read once and kept: a second call in the same process (the same
+    ``sys.stdin``) returns the same bytes, checked against its own ``limit``. A terminal
+    is refused (nothing would arrive until the user typed a file). ``error`` is the
+    class raised for input over the limit (``InputFileError``, exit 3, by default), with
+    ``hint`` appended to its message.
+
+    Raises
+    ------
+    InputFileError
+        Standard input is closed, a terminal, or cannot be read.
+    """
+    import sys
+
+    global _stdin_cache
+    stream = sys.stdin
+    label = f"{what}standard input"
+    if _stdin_cache is not None and _stdin_cache[0] is stream:
+        _, data, eof = _stdin_cache
+    else:
+        if stream is None:
+            raise InputFileError(f"cannot read {label}: it is closed")
+        try:
+            tty = stream.isatty()
+        except (OSError, ValueError):
+            tty = False
+        if tty:
+            raise InputFileError(
+                f"cannot read {label}: it is a terminal; redirect a file into it "
+                "(`rangekit range - < x.wav`) or pipe one"
+            )
+        data, eof = b"", False
+    if not eof and len(data) <= limit:
+        raw = getattr(stream, "buffer", stream)
+        chunks = [data]
+        n = len(data)
+        try:
+            while n <= limit:
+                b = raw.read(min(1 << 20, limit + 1 - n))
+                if not b:
+                    eof = True
+                    break
+                if isinstance(b, str):
+                    b = b.encode("utf-8", "surrogateescape")
+                chunks.append(b)
+                n += len(b)
+        except (OSError, ValueError) as e:
+            msg = getattr(e, "strerror", None) or e
+            raise InputFileError(f"cannot read {label}: {msg}") from None
+        data = b"".join(chunks)
+        _stdin_cache = (stream, data, eof)
+    if len(data) > limit:
+        raise error(
+            f"cannot read {label}: more than the limit of {limit} bytes for this kind of "
+            f"input{hint}"
+        )
+    return data
+
+
 def read_capped(path: str | os.PathLike, limit: int, *, what: str = "") -> bytes:
     """The bytes of the regular file ``path``, refused before reading if over ``limit``.
 
     The file is opened non-blocking and checked again on the open descriptor, so a file
     swapped for a FIFO or a device between the check and the open is refused too.
+    ``-`` is standard input (:func:`read_stdin`, the same limit).
     """
+    if is_stdin(path):
+        return read_stdin(limit, what=what)
     p = os.fspath(path)
     regular_file(p, what=what)
     flags = os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_CLOEXEC", 0)
