@@ -21,7 +21,7 @@ class FiniteRange(click.FloatRange):
 
 
 class QOrAuto(click.ParamType):
-    """``auto`` or a finite quality factor in [0, 100] (``--q``)."""
+    """``auto`` or a finite quality factor in [0, 100] (``--transducer-q``)."""
 
     name = "auto|Q"
 
@@ -35,6 +35,38 @@ class QOrAuto(click.ParamType):
         if not (math.isfinite(v) and 0.0 <= v <= 100.0):
             self.fail(f"{value!r} is not 'auto' or within [0, 100]", param, ctx)
         return v
+
+
+def transducer_q_options(type_: click.ParamType, default, help: str):
+    """``--transducer-q`` (parameter ``q``) and the old ``--q``, hidden, kept for one release.
+
+    The old spelling gives the same value with a one-line deprecation note on stderr;
+    both at once are a usage error (exit 2). Returns a decorator.
+    """
+
+    def deco(f):
+        @click.option(
+            "--transducer-q",
+            "q",
+            type=type_,
+            default=default,
+            show_default=default is not None,
+            help=help,
+        )
+        @click.option("--q", "q_deprecated", type=type_, default=None, hidden=True)
+        @functools.wraps(f)
+        def wrapper(*args, q_deprecated=None, **kw):
+            if q_deprecated is not None:
+                ctx = click.get_current_context()
+                if ctx.get_parameter_source("q") == click.core.ParameterSource.COMMANDLINE:
+                    raise click.UsageError("give --transducer-q only (--q is its old spelling)")
+                kw["q"] = q_deprecated
+                warn("rangekit: --q is deprecated and goes in the next release: --transducer-q")
+            return f(*args, **kw)
+
+        return wrapper
+
+    return deco
 
 
 def beep_options(f):
@@ -184,12 +216,10 @@ def ultrasonic_options(f):
             metavar="M",
             help="Longest distance searched, m [oneway 15; echo 6, the SRF02's].",
         ),
-        click.option(
-            "--q",
-            "q",
-            type=QOrAuto(),
-            default=None,
-            help="oneway: Q of the Tx and Rx transducers. auto = unknown: every arrival is "
+        transducer_q_options(
+            QOrAuto(),
+            None,
+            "oneway: Q of the Tx and Rx transducers. auto = unknown: every arrival is "
             "timed by fitting the burst through resonators of unknown Q and f0 (with "
             "overlapping reflections), the estimates pooled per receiver and transmitter; Q = "
             "known, folded into the template; 0 = the bare drive (the transducers' delay "

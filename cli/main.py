@@ -57,6 +57,7 @@ class RangekitGroup(click.Group):
             click.echo(e.ctx.get_help())
             sys.exit(0)
         except click.ClickException as e:
+            _drop_hidden_suggestions(e)
             msg = " ".join(e.format_message().split())
             ctx = getattr(e, "ctx", None)
             hint = f" (see '{ctx.command_path} --help')" if ctx is not None else ""
@@ -95,6 +96,15 @@ class RangekitGroup(click.Group):
         for note in ctx.meta.pop("rangekit.notes", []):
             click.echo(note, err=True)
         return rv
+
+
+def _drop_hidden_suggestions(e: click.ClickException) -> None:
+    """ "Did you mean" never suggests a hidden option (an old spelling such as ``--q``)."""
+    ctx = getattr(e, "ctx", None)
+    if not isinstance(e, click.exceptions.NoSuchOption) or ctx is None or not e.possibilities:
+        return
+    hidden = {o for p in ctx.command.params if getattr(p, "hidden", False) for o in p.opts}
+    e.possibilities = [p for p in e.possibilities if p not in hidden]
 
 
 def _version() -> str:

@@ -16,6 +16,7 @@ from rangekit_cli._options import (
     note,
     refuse_beep_options,
     temperature_option,
+    transducer_q_options,
     verbosity_options,
 )
 
@@ -335,14 +336,13 @@ def _parse_pose(text: str, name: str = "--pose") -> list[float]:
 
 
 def _ultrasonic_synth_options(f):
-    """--temperature, --q, --fs, --seed, -o and --debug of the ultrasonic synth commands."""
+    """--temperature, --transducer-q, --fs, --seed, -o, -q/-v and --debug of the ultrasonic
+    synth commands."""
     opts = [
-        click.option(
-            "--q",
-            type=FiniteRange(0.5, 100.0),
-            default=4.0,
-            show_default=True,
-            help="Q of the transducers (Tx and Rx; the echo sensor has one).",
+        transducer_q_options(
+            FiniteRange(0.5, 100.0),
+            4.0,
+            "Q of the transducers (Tx and Rx; the echo sensor has one).",
         ),
         click.option(
             "--fs",

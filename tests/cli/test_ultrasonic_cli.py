@@ -166,23 +166,23 @@ def test_synth_echo_map_errors(tmp_path):
 
 def test_oneway_unknown_q_is_fitted_and_flags_are_a_column(tmp_path):
     """A recording through Q 15 transducers (``synth --q 15``, 20 dB, one window per Tx):
-    the default ``--q auto`` ranges it within 4 mm and 3.5 sigma (measured: within 2.8 mm
-    and 2.8 sigma), ``--q 4`` (the template assumed known, the old default) is biased by
+    the default ``--transducer-q auto`` ranges it within 4 mm and 3.5 sigma (measured: within 2.8 mm
+    and 2.8 sigma), ``--transducer-q 4`` (the template assumed known, the old default) is biased by
     +25 to +30 mm at a sigma of 0.4 mm. Every output format carries the arrival flags,
     last."""
     out = tmp_path / "q15.wav"
-    r = _run(["synth", "oneway", "--pose", "0.3,-0.2,40", "--period", 0.05, "--q", 15,
+    r = _run(["synth", "oneway", "--pose", "0.3,-0.2,40", "--period", 0.05, "--transducer-q", 15,
               "--seed", 8, "-o", out])  # fmt: skip
     assert r.exit_code == 0, r.stderr
     truth = json.loads(out.with_suffix(".json").read_text())
     base = ["range", "--scheme", "oneway", out, "--period", 0.05, "--tx-order", "0,1,2,3,4,5"]
-    for q in ([], ["--q", "auto"], ["--q", 4]):
+    for q in ([], ["--transducer-q", "auto"], ["--transducer-q", 4]):
         r = _run([*base, *q, "--format", "json"])
         assert r.exit_code == 0, r.stderr
         for row in json.loads(r.stdout)["ranges"]:
             w = truth["windows"][row["window"]]
             err = row["distance_m"] - w["distances_m"][row["channel"]]
-            if q == ["--q", 4]:
+            if q == ["--transducer-q", 4]:
                 assert 0.02 < err < 0.035
             else:
                 assert abs(err) < min(4e-3, 3.5 * row["sigma_m"])
@@ -194,4 +194,4 @@ def test_oneway_unknown_q_is_fitted_and_flags_are_a_column(tmp_path):
     header = r.stdout.splitlines()[0].split()
     assert header[-2:] == ["arrival_s", "flags"]
     assert r.stdout.splitlines()[1].split()[-1] == "-"
-    _assert_error(_run([*base, "--q", "high"]), 2, "--q")
+    _assert_error(_run([*base, "--transducer-q", "high"]), 2, "--transducer-q")
