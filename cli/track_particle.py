@@ -95,7 +95,7 @@ def particle_cmd(log, steps, map_path, ranges, start, method, mode, particles, m
       rangekit track particle steps.csv --map plan.json --ranges ranges.csv \\
           --start 1.25,1 -o track.csv
       rangekit track particle steps.csv --map plan.json --ranges ranges.csv \\
-          --start 1.25,1 --rig rig.json --method sir --particles 10000
+          --start 1.25,1 --method sir --particles 10000 --seed 1
     """
     from rangekit_cli._options import float_list
 
