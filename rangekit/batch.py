@@ -914,13 +914,15 @@ META_VERSION = 2
 
 
 def meta_path(results: str | os.PathLike) -> Path:
-    """The metadata file of a results file: ``RESULTS.meta.json`` beside it.
+    """The metadata file of a results file: ``RESULTS.meta.json`` beside it, ``RESULTS``
+    the results file's whole name (``r.csv`` and ``r.jsonl`` in one folder do not share
+    one).
 
     >>> meta_path("out/day1.csv").as_posix(), meta_path("r.jsonl").name
-    ('out/day1.meta.json', 'r.meta.json')
+    ('out/day1.csv.meta.json', 'r.jsonl.meta.json')
     """
     p = Path(results)
-    return p.with_name(p.stem + ".meta.json")
+    return p.with_name(p.name + ".meta.json")
 
 
 def _cell(v: Any) -> str:
@@ -992,8 +994,8 @@ class ResultsFile:
     InvalidParameterError
         Unknown suffix; an existing file without ``resume``; resuming a file written
         with other options, without its metadata file, by a rangekit older than the
-        metadata file, or that is not a batch results file; a metadata file in the way
-        that belongs to another results file.
+        metadata file, or that is not a batch results file; a file in the metadata
+        file's place that is not one.
     InputFileError
         The folder does not exist or the file cannot be written.
     """
@@ -1052,19 +1054,16 @@ class ResultsFile:
             return {}
 
     def _claim_meta(self) -> None:
-        """Refuse a new batch whose metadata file would replace one that is not an
-        orphan of this results file (another file's, or not rangekit's)."""
+        """Refuse a new batch whose metadata file would replace a file that is not a
+        batch's metadata (one left by a batch whose results file was deleted is)."""
         old = self._read_meta()
         if old is None:
             return
-        ours = isinstance(old, dict) and old.get("format") == META_FORMAT
-        other = old.get("results") if ours else None
-        if ours and (other == self.path.name or not (self.path.parent / str(other)).exists()):
+        if isinstance(old, dict) and old.get("format") == META_FORMAT:
             return  # left by a batch whose results file is gone
-        whose = f"of '{other}'" if ours else "that rangekit did not write"
         raise InvalidParameterError(
-            f"'{self.meta_path}' exists, a file {whose}: choose another output name "
-            "(nothing was overwritten)"
+            f"'{self.meta_path}' exists and is not a rangekit batch metadata file: choose "
+            "another output name (nothing was overwritten)"
         )
 
     def _write_meta(self) -> None:

@@ -196,25 +196,27 @@ def test_existing_file_needs_resume_and_same_options(archive, tmp_path):
     with pytest.raises(InputFileError, match="does not exist"):
         ResultsFile(tmp_path / "nope" / "r.csv", BatchOptions(), resume=False)
     (tmp_path / "alien.csv").write_text("a,b\n1,2\n")
-    with pytest.raises(InvalidParameterError, match=r"alien\.meta\.json' is missing"):
+    with pytest.raises(InvalidParameterError, match=r"alien\.csv\.meta\.json' is missing"):
         run_batch(sessions, tmp_path / "alien.csv", resume=True)
-    shutil.copy(tmp_path / "r.meta.json", tmp_path / "alien.meta.json")
+    shutil.copy(tmp_path / "r.csv.meta.json", tmp_path / "alien.csv.meta.json")
     with pytest.raises(InvalidParameterError, match="another results file"):
         run_batch(sessions, tmp_path / "alien.csv", resume=True)
     # The metadata of r.csv with its name changed to alien.csv's: the header decides.
-    meta = json.loads((tmp_path / "r.meta.json").read_text())
-    (tmp_path / "alien.meta.json").write_text(json.dumps({**meta, "results": "alien.csv"}))
+    meta = json.loads((tmp_path / "r.csv.meta.json").read_text())
+    (tmp_path / "alien.csv.meta.json").write_text(json.dumps({**meta, "results": "alien.csv"}))
     with pytest.raises(InvalidParameterError, match="not the header"):
         run_batch(sessions, tmp_path / "alien.csv", resume=True)
     assert (tmp_path / "alien.csv").read_text() == "a,b\n1,2\n"
-    # A new batch whose metadata file would replace another results file's is refused.
-    with pytest.raises(InvalidParameterError, match=r"a file of 'r\.csv'"):
-        run_batch(sessions, tmp_path / "r.jsonl")
-    assert not (tmp_path / "r.jsonl").exists()
-    # An orphan (its results file deleted) is replaced.
+    # A new batch does not replace a file in its metadata file's place that is not one...
+    (tmp_path / "new.csv.meta.json").write_text("[]")
+    with pytest.raises(InvalidParameterError, match="not a rangekit batch metadata"):
+        run_batch(sessions, tmp_path / "new.csv")
+    assert not (tmp_path / "new.csv").exists()
+    # ... but one left by a batch whose results file was deleted.
     out.unlink()
     run_batch(sessions, out)
     assert out.read_bytes() == before
+    run_batch(sessions, tmp_path / "r.jsonl")  # r.csv's metadata file is not in the way
 
 
 @pytest.mark.parametrize("suffix", [".csv", ".jsonl"])
@@ -254,8 +256,8 @@ def test_torn_tail_is_cut_and_redone(archive, tmp_path, suffix):
     ):
         part = tmp_path / f"part{suffix}"
         part.write_text(cut)
-        meta = json.loads((tmp_path / "full.meta.json").read_text())
-        write_json(tmp_path / "part.meta.json", {**meta, "results": part.name})
+        meta = json.loads((tmp_path / f"full{suffix}.meta.json").read_text())
+        write_json(tmp_path / f"part{suffix}.meta.json", {**meta, "results": part.name})
         s = run_batch(sessions, part, resume=True)
         assert part.read_bytes() == full.read_bytes()
         assert s.skipped < len(sessions)
@@ -294,9 +296,10 @@ def test_sigkill_twice_then_resume_equals_uninterrupted(archive, tmp_path):
     r = subprocess.run([*cmd(out, 2), "--resume"], env=env, capture_output=True, text=True)
     assert r.returncode == 8, r.stderr
     assert out.read_bytes() == ref.read_bytes()
-    assert sorted(os.listdir(tmp_path)) == ["out.csv", "out.meta.json", "ref.csv", "ref.meta.json"]
-    meta = json.loads((tmp_path / "out.meta.json").read_text())
-    assert {**meta, "results": "ref.csv"} == json.loads((tmp_path / "ref.meta.json").read_text())
+    names = ["out.csv", "out.csv.meta.json", "ref.csv", "ref.csv.meta.json"]
+    assert sorted(os.listdir(tmp_path)) == names
+    meta = json.loads((tmp_path / "out.csv.meta.json").read_text())
+    assert {**meta, "results": "ref.csv"} == json.loads(Path(tmp_path / names[3]).read_text())
 
 
 def test_dask_local_cluster_equals_local(archive, tmp_path):

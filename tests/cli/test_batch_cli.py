@@ -56,7 +56,7 @@ def test_jsonl_some_failed_exit_8(good, tmp_path):
     assert r.exit_code == EXIT_SOME_FAILED, r.stderr
     assert r.stderr == ""  # -q
     rows = [json.loads(ln) for ln in out.read_text().splitlines()]
-    assert json.loads((tmp_path / "r.meta.json").read_text())["results"] == "r.jsonl"
+    assert json.loads((tmp_path / "r.jsonl.meta.json").read_text())["results"] == "r.jsonl"
     bad = [x for x in rows if x["status"] == "error"]
     assert len(bad) == 1 and "broken.wav" in bad[0]["error"]
     assert bad[0]["distance_m"] is None
