@@ -60,8 +60,25 @@ TESTS: dict[str, tuple[str, ...]] = {
         "tests/detect/test_refine.py",
         "tests/detect/test_edge_kernels.py",
         "tests/detect/test_refine_boundaries.py",
+        "tests/detect/test_refine_mutation.py",
     ),
-    "rangekit/localize/ekf.py": ("tests/localize/test_ekf.py",),
+    "rangekit/detect/changepoint.py": (
+        "tests/detect/test_changepoint.py",
+        "tests/detect/test_changepoint_mutation.py",
+        "tests/detect/test_edge_kernels.py",
+    ),
+    "rangekit/ranging/clock.py": (
+        "tests/ranging/test_clock.py",
+        "tests/ranging/test_clock_mutation.py",
+    ),
+    "rangekit/ranging/calibration.py": (
+        "tests/ranging/test_calibration_mutation.py",
+        "tests/cli/test_calibrate_cli.py",
+    ),
+    "rangekit/localize/ekf.py": (
+        "tests/localize/test_ekf.py",
+        "tests/localize/test_ekf_mutation.py",
+    ),
 }
 
 _CMP = {
@@ -214,16 +231,25 @@ def _run_tests(work: pathlib.Path, args: list[str], timeout_s: float) -> tuple[s
     return ("survived" if rc == 0 else "killed"), time.perf_counter() - t0
 
 
-def check_module(module: str, *, n: int, seed: int, timeout_s: float) -> list[Outcome]:
-    """Sample ``n`` sites of ``module`` (seeded) and run its tests on each mutant."""
+def check_module(
+    module: str, *, n: int, seed: int, timeout_s: float, only: list[Site] | None = None
+) -> list[Outcome]:
+    """Sample ``n`` sites of ``module`` (seeded) and run its tests on each mutant.
+
+    With ``only``, run exactly those sites (``--rerun``) instead of a sample.
+    """
     tests = [t for t in TESTS[module] if (ROOT / t).exists()]
     source = (ROOT / module).read_text(encoding="utf-8")
     all_sites = sites(source)
-    rng = np.random.default_rng(seed)
-    pick = sorted(rng.choice(len(all_sites), size=min(n, len(all_sites)), replace=False))
-    sample = [all_sites[i] for i in pick]
-    print(f"{module}: {len(all_sites)} sites, {len(sample)} sampled (seed {seed}); tests: "
-          + " ".join(tests), flush=True)  # fmt: skip
+    if only is None:
+        rng = np.random.default_rng(seed)
+        pick = sorted(rng.choice(len(all_sites), size=min(n, len(all_sites)), replace=False))
+        sample = [all_sites[i] for i in pick]
+        what = f"{len(sample)} sampled (seed {seed})"
+    else:
+        sample = only
+        what = f"{len(sample)} re-run"
+    print(f"{module}: {len(all_sites)} sites, {what}; tests: " + " ".join(tests), flush=True)
     with tempfile.TemporaryDirectory(prefix="rk-mutation-") as tmp:
         work = pathlib.Path(tmp)
         _copy_tree(work)
@@ -251,7 +277,7 @@ def check_module(module: str, *, n: int, seed: int, timeout_s: float) -> list[Ou
     return out
 
 
-def summary(module: str, out: list[Outcome], n_sites: int, seed: int) -> dict:
+def summary(module: str, out: list[Outcome], n_sites: int, seed: int, rerun: bool = False) -> dict:
     valid = [o for o in out if o.status != "invalid"]
     killed = sum(o.status in ("killed", "timeout") for o in valid)
     score = killed / len(valid) if valid else float("nan")
@@ -263,11 +289,33 @@ def summary(module: str, out: list[Outcome], n_sites: int, seed: int) -> dict:
     for s in surv:
         print(f"  survived: line {s.line}: {s.what}: {lines[s.line - 1].strip()}")
     note = f"{killed}/{len(valid)} of a seeded sample (seed {seed}) of {n_sites} sites"
-    row("mutation", f"{module} mutants killed by its own tests", 100 * score, "%", note=note)
+    if rerun:
+        note = f"{killed}/{len(valid)} earlier survivors killed now (of {n_sites} sites)"
+    metric = "earlier survivors killed" if rerun else "mutants killed by its own tests"
+    row("mutation", f"{module} {metric}", 100 * score, "%", note=note)
     return {"module": module, "sites": n_sites, "sampled": len(out), "killed": killed,
             "valid": len(valid), "score": score,
             "mutants": [{**asdict(o.site), "status": o.status, "seconds": o.seconds}
                         for o in out]}  # fmt: skip
+
+
+def survivors(path: pathlib.Path, module: str) -> tuple[list[Site], int]:
+    """The sites of ``module`` that survived in a ``--json`` file and still exist in its
+    source unchanged, and how many survivors no longer match (the source moved)."""
+    current = set(sites((ROOT / module).read_text(encoding="utf-8")))
+    found, stale = [], 0
+    for res in json.loads(path.read_text(encoding="utf-8")):
+        if res["module"] != module:
+            continue
+        for m in res["mutants"]:
+            if m["status"] != "survived":
+                continue
+            site = Site(**{k: m[k] for k in Site.__dataclass_fields__})
+            if site in current:
+                found.append(site)
+            else:
+                stale += 1
+    return sorted(set(found), key=lambda s: (s.line, s.col, s.what)), stale
 
 
 def main() -> int:
@@ -283,6 +331,14 @@ def main() -> int:
     )
     ap.add_argument("--json", type=pathlib.Path, help="write every mutant's outcome here")
     ap.add_argument("--list", action="store_true", help="only list the sites and their count")
+    ap.add_argument(
+        "--rerun",
+        type=pathlib.Path,
+        action="append",
+        default=[],
+        metavar="JSON",
+        help="run only the survivors of earlier --json files (repeatable) against the tests now",
+    )
     args = ap.parse_args()
     mods = args.modules or list(TESTS)
     for m in mods:
@@ -296,8 +352,19 @@ def main() -> int:
                 print(f"{m}:{s.line}:{s.col}: {s.what}")
             print(f"{m}: {len(all_sites)} sites")
             continue
-        out = check_module(m, n=args.n, seed=args.seed, timeout_s=args.timeout)
-        results.append(summary(m, out, len(all_sites), args.seed))
+        only = None
+        if args.rerun:
+            only, n_stale = [], 0
+            for f in args.rerun:
+                got, stale = survivors(f, m)
+                only += [s for s in got if s not in only]
+                n_stale += stale
+            print(f"{m}: {len(only)} earlier survivors to re-run ({n_stale} no longer in the "
+                  "source)", flush=True)  # fmt: skip
+            if not only:
+                continue
+        out = check_module(m, n=args.n, seed=args.seed, timeout_s=args.timeout, only=only)
+        results.append(summary(m, out, len(all_sites), args.seed, rerun=bool(args.rerun)))
     if args.json:
         args.json.write_text(json.dumps(results, indent=1) + "\n", encoding="utf-8")
     return 0
