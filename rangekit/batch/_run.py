@@ -1,0 +1,157 @@
+"""Running a batch: sessions sent in chunks to local worker processes or a Dask cluster,
+each finished session appended to the results file (:func:`run_batch`)."""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+
+from rangekit.batch._dask import _run_dask, check_scheduler_address
+from rangekit.batch._options import BatchOptions
+from rangekit.batch._ranging import _run_chunk, run_session
+from rangekit.batch._results import ResultsFile
+from rangekit.batch._sessions import Session
+from rangekit.errors import InvalidParameterError
+
+
+@dataclass(frozen=True)
+class BatchSummary:
+    """Counts of a finished batch over its sessions: ``total``; ``skipped`` (found done
+    in a resumed file); ``ok`` and ``failed`` (status of every session in the file, the
+    skipped ones included); and the output ``path``."""
+
+    total: int
+    skipped: int
+    ok: int
+    failed: int
+    path: str
+
+
+def _chunks(items: Sequence[Session], size: int) -> list[list[Session]]:
+    return [list(items[i : i + size]) for i in range(0, len(items), size)]
+
+
+def _pool_initializer() -> None:
+    """Workers leave Ctrl-C to the parent (which stops them and keeps what is written),
+    and on Linux die with it (a parent killed by SIGKILL leaves no orphan working on)."""
+    import signal
+    import sys
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    if sys.platform.startswith("linux"):
+        import ctypes
+
+        try:
+            libc = ctypes.CDLL(None, use_errno=True)
+            libc.prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG
+        except (OSError, AttributeError):
+            pass
+
+
+def run_batch(
+    sessions: Sequence[Session],
+    output: str | os.PathLike,
+    options: BatchOptions | None = None,
+    *,
+    jobs: int = 1,
+    resume: bool = False,
+    scheduler: str | None = None,
+    progress: Callable[[int, int], None] | None = None,
+    chunk: int | None = None,
+) -> BatchSummary:
+    """Range ``sessions`` and write every result row to ``output``.
+
+    Parameters
+    ----------
+    sessions : sequence of Session
+        From :func:`find_sessions`.
+    output : str or os.PathLike
+        The results file, ``.csv`` or ``.jsonl`` (:class:`ResultsFile`).
+    options : BatchOptions, optional
+        Defaults for sessions without a sidecar value.
+    jobs : int
+        Worker processes (1: in this process). Ignored with ``scheduler``.
+    resume : bool
+        Continue ``output``: sessions already in it are skipped.
+    scheduler : str, optional
+        Address of a Dask distributed scheduler (``tcp://HOST:PORT``); needs the optional
+        ``dask[distributed]`` (``pip install rangekit[dask]``).
+    progress : callable, optional
+        Called as ``progress(done, total)`` after each session (``done`` counts skipped
+        sessions too).
+    chunk : int, optional
+        Sessions per task sent to a worker; default: about 4 tasks per worker, at most 16
+        sessions.
+
+    Returns
+    -------
+    BatchSummary
+
+    Notes
+    -----
+    On an interrupt (Ctrl-C) the workers are stopped, every session finished so far is in
+    the file, and ``KeyboardInterrupt`` propagates; rerun with ``resume=True``.
+    """
+    options = BatchOptions() if options is None else options
+    jobs = int(jobs)
+    if jobs < 1:
+        raise InvalidParameterError(f"jobs={jobs} must be >= 1")
+    if scheduler is not None:
+        check_scheduler_address(scheduler)
+    results = ResultsFile(output, options, resume=resume)
+    order = [s.name for s in sessions]
+    todo = [s for s in sessions if s.name not in results.done]
+    total = len(sessions)
+    skipped = total - len(todo)
+    done = skipped
+    if progress is not None:
+        progress(done, total)
+
+    def record(rows: list[dict]) -> None:
+        nonlocal done
+        results.append(rows)
+        done += 1
+        if progress is not None:
+            progress(done, total)
+
+    workers = jobs if scheduler is None else 4
+    size = chunk or max(1, min(16, len(todo) // (4 * workers) or 1))
+    try:
+        if scheduler is not None:
+            _run_dask(scheduler, _chunks(todo, size), options, record)
+        elif jobs == 1 or len(todo) <= 1:
+            for s in todo:
+                record(run_session(s, options))
+        else:
+            _run_pool(jobs, _chunks(todo, size), options, record)
+    finally:
+        results.close()
+    ok = sum(results.status.get(n) == "ok" for n in order)
+    failed = sum(results.status.get(n) == "error" for n in order)
+    summary = BatchSummary(total, skipped, ok, failed, str(results.path))
+    results.finish(order)
+    return summary
+
+
+def _run_pool(jobs: int, chunks: list[list[Session]], options, record) -> None:
+    import concurrent.futures as cf
+    import multiprocessing as mp
+
+    # fork starts workers in milliseconds with rangekit (and numba's compiled kernels)
+    # already loaded; elsewhere spawn.
+    ctx = mp.get_context("fork" if "fork" in mp.get_all_start_methods() else "spawn")
+    ex = cf.ProcessPoolExecutor(max_workers=jobs, mp_context=ctx, initializer=_pool_initializer)
+    try:
+        futs = [ex.submit(_run_chunk, c, options) for c in chunks]
+        for f in cf.as_completed(futs):
+            for rows in f.result():
+                record(rows)
+    except BaseException:
+        procs = list((getattr(ex, "_processes", None) or {}).values())
+        ex.shutdown(wait=False, cancel_futures=True)
+        # shutdown() sets _processes to None: take the workers before it
+        for p in procs:
+            p.terminate()
+        raise
+    ex.shutdown(wait=True)
