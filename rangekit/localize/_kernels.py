@@ -34,6 +34,8 @@ import math
 import numpy as np
 from numba import njit
 
+from rangekit.localize.range_ekf import ITER_TOL_M2
+
 LOG_2PI = math.log(2.0 * math.pi)
 
 
@@ -142,16 +144,23 @@ def _chol_inplace(S, m):  # pragma: no cover - compiled
 
 @njit(cache=True)
 def epoch_update(
-    x, P, kind, a, b, val, var, cov, lo, hi, rx, ry, Pr, sign, thr, gate_kind_max,
-    acc, nis_out, inno_out,
+    x, P, xlin, n_iter, kind, a, b, val, var, cov, lo, hi, rx, ry, Pr, sign, thr,
+    gate_kind_max, acc, nis_out, inno_out,
 ):  # pragma: no cover - compiled  # fmt: skip
-    """One joint EKF update with the rows lo..hi-1, after per-row gating of the ranges.
+    """One joint (iterated) EKF update with the rows lo..hi-1, after per-row gating.
 
-    Each range row (kind <= ``gate_kind_max``) is gated on its own marginal innovation:
-    ``y_i^2 / S_ii > thr`` rejects it. The kept rows update jointly (Joseph form).
+    ``x, P`` hold the prior on entry and the posterior on exit. The measurement model is
+    linearised at ``xlin`` (the prior mean for the plain EKF, the mirror image of the
+    prior mean for the other branch of a range-only target) and relinearised at each
+    new estimate up to ``n_iter`` times (the iterated EKF, Bell & Cathey 1993: a
+    Gauss-Newton search for the posterior mode), with the linearised innovation
+    ``y = z - h(x_i) - H_i (x_prior - x_i)``; ``n_iter = 1`` with ``xlin = x`` is the
+    plain EKF. Each range row (kind <= ``gate_kind_max``) is gated on its own marginal
+    innovation at the first linearisation point (``y_i^2 / S_ii > thr`` rejects it);
+    the kept rows update jointly, the covariance in Joseph form with the last ``H``.
     Writes ``acc`` (kept?), ``nis_out`` (marginal NIS) and ``inno_out`` (innovation) for
-    every row; updates x, P in
-    place; returns the log-likelihood of the epoch (rejected rows count as NIS = thr).
+    every row; returns the log-likelihood ``log N(y; 0, S)`` at the last linearisation
+    point (rejected rows count as NIS = thr).
     """
     d = x.size
     m = hi - lo
@@ -160,106 +169,125 @@ def epoch_update(
     H = np.empty((m, d))
     G = np.empty((m, 2))
     ok = np.empty(m, dtype=np.bool_)
-    _linearise(x, kind, a, b, val, lo, hi, rx, ry, sign, z, zh, H, G, ok)
-    # PHt = P H^T (d x m), S = H P H^T + G Pr G^T + N
+    xl = xlin.copy()
+    xnew = np.empty(d)
     PHt = np.zeros((d, m))
-    for i in range(d):
+    S = np.empty((m, m))
+    keep = np.empty(m, dtype=np.int64)
+    mk = 0
+    ll_gated = 0.0
+    ll = 0.0
+    yk = np.empty(m)
+    for it in range(n_iter):
+        _linearise(xl, kind, a, b, val, lo, hi, rx, ry, sign, z, zh, H, G, ok)
+        # linearised innovation about xl: z - h(xl) - H (x_prior - xl)
         for r in range(m):
             s = 0.0
             for j in range(d):
-                s += P[i, j] * H[r, j]
-            PHt[i, r] = s
-    S = np.empty((m, m))
-    for r in range(m):
-        for c in range(m):
+                s += H[r, j] * (x[j] - xl[j])
+            zh[r] += s
+        # PHt = P H^T (d x m), S = H P H^T + G Pr G^T + N
+        for i in range(d):
+            for r in range(m):
+                s = 0.0
+                for j in range(d):
+                    s += P[i, j] * H[r, j]
+                PHt[i, r] = s
+        for r in range(m):
+            for c in range(m):
+                s = 0.0
+                for j in range(d):
+                    s += H[r, j] * PHt[j, c]
+                g = G[r, 0] * (Pr[0, 0] * G[c, 0] + Pr[0, 1] * G[c, 1]) + G[r, 1] * (
+                    Pr[1, 0] * G[c, 0] + Pr[1, 1] * G[c, 1]
+                )
+                S[r, c] = s + g
+        for r in range(m):
+            i = lo + r
+            S[r, r] += var[i]
+            if kind[i] == 2 and r + 1 < m and kind[i + 1] == 3:
+                S[r, r + 1] += cov[i]
+                S[r + 1, r] += cov[i]
+        if it == 0:
+            # gating on the marginal innovation of each range row
+            for r in range(m):
+                i = lo + r
+                if not ok[r]:
+                    acc[i] = False
+                    nis_out[i] = np.nan
+                    inno_out[i] = np.nan
+                    continue
+                y = z[r] - zh[r]
+                inno_out[i] = y
+                nis = y * y / S[r, r]
+                nis_out[i] = nis
+                if kind[i] <= gate_kind_max and nis > thr:
+                    acc[i] = False
+                    ll_gated -= 0.5 * (thr + math.log(S[r, r]) + LOG_2PI)
+                else:
+                    acc[i] = True
+                    keep[mk] = r
+                    mk += 1
+            if mk == 0:
+                return ll_gated
+        # reduced system
+        Sk = np.empty((mk, mk))
+        for p in range(mk):
+            yk[p] = z[keep[p]] - zh[keep[p]]
+            for q in range(mk):
+                Sk[p, q] = S[keep[p], keep[q]]
+        if not _chol_inplace(Sk, mk):
+            for p in range(mk):
+                acc[lo + keep[p]] = False
+            return -np.inf
+        L = Sk
+        # w = L^-1 y ; nis = |w|^2 ; logdet = 2 sum log diag L
+        w = yk[:mk].copy()
+        for p in range(mk):
+            s = w[p]
+            for q in range(p):
+                s -= L[p, q] * w[q]
+            w[p] = s / L[p, p]
+        nis_joint = 0.0
+        logdet = 0.0
+        for p in range(mk):
+            nis_joint += w[p] * w[p]
+            logdet += 2.0 * math.log(L[p, p])
+        ll = ll_gated - 0.5 * (nis_joint + logdet + mk * LOG_2PI)
+        # K^T = S^-1 (P H^T)^T : solve L L^T Kt = PHt^T (mk x d)
+        Kt = np.empty((mk, d))
+        for j in range(d):
+            for p in range(mk):
+                s = PHt[j, keep[p]]
+                for q in range(p):
+                    s -= L[p, q] * Kt[q, j]
+                Kt[p, j] = s / L[p, p]
+            for p in range(mk - 1, -1, -1):
+                s = Kt[p, j]
+                for q in range(p + 1, mk):
+                    s -= L[q, p] * Kt[q, j]
+                Kt[p, j] = s / L[p, p]
+        step = 0.0
+        for j in range(d):
             s = 0.0
-            for j in range(d):
-                s += H[r, j] * PHt[j, c]
-            g = G[r, 0] * (Pr[0, 0] * G[c, 0] + Pr[0, 1] * G[c, 1]) + G[r, 1] * (
-                Pr[1, 0] * G[c, 0] + Pr[1, 1] * G[c, 1]
-            )
-            S[r, c] = s + g
-    for r in range(m):
-        i = lo + r
-        S[r, r] += var[i]
-        if kind[i] == 2 and r + 1 < m and kind[i + 1] == 3:
-            S[r, r + 1] += cov[i]
-            S[r + 1, r] += cov[i]
-    # gating on the marginal innovation of each range row
-    ll = 0.0
-    keep = np.empty(m, dtype=np.int64)
-    mk = 0
-    for r in range(m):
-        i = lo + r
-        if not ok[r]:
-            acc[i] = False
-            nis_out[i] = np.nan
-            inno_out[i] = np.nan
-            continue
-        y = z[r] - zh[r]
-        inno_out[i] = y
-        nis = y * y / S[r, r]
-        nis_out[i] = nis
-        if kind[i] <= gate_kind_max and nis > thr:
-            acc[i] = False
-            ll -= 0.5 * (thr + math.log(S[r, r]) + LOG_2PI)
-        else:
-            acc[i] = True
-            keep[mk] = r
-            mk += 1
-    if mk == 0:
-        return ll
-    # reduced system
-    Sk = np.empty((mk, mk))
-    yk = np.empty(mk)
-    for p in range(mk):
-        yk[p] = z[keep[p]] - zh[keep[p]]
-        for q in range(mk):
-            Sk[p, q] = S[keep[p], keep[q]]
-    Rk = Sk.copy()  # R = S - H P H^T on the kept rows (needed for the Joseph form)
+            for p in range(mk):
+                s += Kt[p, j] * yk[p]
+            xnew[j] = x[j] + s
+            step += (xnew[j] - xl[j]) ** 2
+        if it + 1 == n_iter or step < ITER_TOL_M2:
+            break
+        for j in range(d):
+            xl[j] = xnew[j]
+    # R = S - H P H^T on the kept rows (needed for the Joseph form)
+    Rk = np.empty((mk, mk))
     for p in range(mk):
         for q in range(mk):
             s = 0.0
             for j in range(d):
                 s += H[keep[p], j] * PHt[j, keep[q]]
-            Rk[p, q] -= s
-    if not _chol_inplace(Sk, mk):
-        for p in range(mk):
-            acc[lo + keep[p]] = False
-        return -np.inf
-    L = Sk
-    # w = L^-1 y ; nis = |w|^2 ; logdet = 2 sum log diag L
-    w = yk.copy()
-    for p in range(mk):
-        s = w[p]
-        for q in range(p):
-            s -= L[p, q] * w[q]
-        w[p] = s / L[p, p]
-    nis_joint = 0.0
-    logdet = 0.0
-    for p in range(mk):
-        nis_joint += w[p] * w[p]
-        logdet += 2.0 * math.log(L[p, p])
-    ll -= 0.5 * (nis_joint + logdet + mk * LOG_2PI)
-    # K^T = S^-1 (P H^T)^T : solve L L^T Kt = PHt^T (mk x d)
-    Kt = np.empty((mk, d))
+            Rk[p, q] = S[keep[p], keep[q]] - s
     for j in range(d):
-        for p in range(mk):
-            s = PHt[j, keep[p]]
-            for q in range(p):
-                s -= L[p, q] * Kt[q, j]
-            Kt[p, j] = s / L[p, p]
-        for p in range(mk - 1, -1, -1):
-            s = Kt[p, j]
-            for q in range(p + 1, mk):
-                s -= L[q, p] * Kt[q, j]
-            Kt[p, j] = s / L[p, p]
-    # x += K y  (y reused: innovation = L w)
-    for j in range(d):
-        s = 0.0
-        for p in range(mk):
-            s += Kt[p, j] * yk[p]
-        x[j] += s
+        x[j] = xnew[j]
     # Joseph form: P = A P A^T + K R K^T, A = I - K H
     A = np.empty((d, d))
     for i in range(d):
@@ -297,10 +325,15 @@ def epoch_update(
 @njit(cache=True)
 def epoch_step(
     x, P, xp, Pp, dt, e, start, kind, a, b, val, var, cov, robot_xy, robot_P, q, sign, thr,
-    gate_kind_max, relock, sigma_v0, streak, acc, nis, inno,
+    gate_kind_max, relock, sigma_v0, streak, acc, nis, inno, n_iter, mirror,
 ):  # pragma: no cover - compiled  # fmt: skip
     """Predict ``x, P`` by ``dt`` (prior into ``xp, Pp``), update with epoch ``e``'s rows
     in place; returns (log-likelihood, number of targets re-opened).
+
+    ``mirror = (o, p_x, p_y, u_x, u_y)``: with ``o >= 0`` the update is linearised at the
+    prior mean with the position block ``o:o+2`` reflected in the line through ``p``
+    along the unit vector ``u`` (the other branch of a target ranged from two points;
+    :func:`epoch_update`); ``o < 0``: at the prior mean. ``n_iter`` iterations.
 
     Lock-out breaker: when every range of a target has been gated out in ``relock``
     consecutive epochs (``streak`` counts them per target), the filter has lost it (a
@@ -315,9 +348,17 @@ def epoch_step(
     x[:] = xp
     P[:, :] = Pp
     rx, ry = robot_xy[e, 0], robot_xy[e, 1]
+    xlin = xp.copy()
+    o = int(mirror[0])
+    if o >= 0:
+        ux, uy = mirror[3], mirror[4]
+        dx, dy = xp[o] - mirror[1], xp[o + 1] - mirror[2]
+        along = dx * ux + dy * uy
+        xlin[o] = mirror[1] + 2.0 * along * ux - dx
+        xlin[o + 1] = mirror[2] + 2.0 * along * uy - dy
     ll = epoch_update(
-        x, P, kind, a, b, val, var, cov, lo, hi, rx, ry, robot_P[e], sign, thr,
-        gate_kind_max, acc, nis, inno,
+        x, P, xlin, n_iter, kind, a, b, val, var, cov, lo, hi, rx, ry, robot_P[e], sign,
+        thr, gate_kind_max, acc, nis, inno,
     )  # fmt: skip
     n_re = 0
     for j in range(n_t):
@@ -350,8 +391,8 @@ def epoch_step(
         x[:] = xp
         P[:, :] = Pp
         ll = epoch_update(
-            x, P, kind, a, b, val, var, cov, lo, hi, rx, ry, robot_P[e], sign, np.inf,
-            gate_kind_max, acc, nis, inno,
+            x, P, xlin, n_iter, kind, a, b, val, var, cov, lo, hi, rx, ry, robot_P[e], sign,
+            np.inf, gate_kind_max, acc, nis, inno,
         )  # fmt: skip
     return ll, n_re
 
@@ -359,7 +400,7 @@ def epoch_step(
 @njit(cache=True)
 def run_range_ekf(
     x0, P0, t0, ev_t, start, kind, a, b, val, var, cov, robot_xy, robot_P, q, sign, thr,
-    gate_kind_max, relock, sigma_v0, xs, Ps, xps, Pps, acc, nis, inno, ll, reinit,
+    gate_kind_max, relock, sigma_v0, n_iter, xs, Ps, xps, Pps, acc, nis, inno, ll, reinit,
 ):  # pragma: no cover - compiled  # fmt: skip
     """Filter a whole log with :func:`epoch_step`: for each epoch e, predict to ev_t[e]
     then update with its rows.
@@ -373,11 +414,13 @@ def run_range_ekf(
     xp = np.empty(d)
     Pp = np.empty((d, d))
     streak = np.zeros(d // 4, dtype=np.int64)
+    no_mirror = np.array([-1.0, 0.0, 0.0, 0.0, 0.0])
     t = t0
     for e in range(ev_t.size):
         ll[e], reinit[e] = epoch_step(
             x, P, xp, Pp, ev_t[e] - t, e, start, kind, a, b, val, var, cov, robot_xy,
             robot_P, q, sign, thr, gate_kind_max, relock, sigma_v0, streak, acc, nis, inno,
+            n_iter, no_mirror,
         )  # fmt: skip
         t = ev_t[e]
         xps[e] = xp

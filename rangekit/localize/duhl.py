@@ -40,7 +40,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from rangekit import _validate as V
-from rangekit.errors import InvalidParameterError
+from rangekit.errors import IncompatibleInputError, InvalidParameterError
 from rangekit.localize import _duhl_kernels as K
 from rangekit.localize._uhl_kernels import uhl_core
 from rangekit.localize.ekf import chi2_gate
@@ -66,6 +66,17 @@ PIONEER_WHEEL_BASE_M = 0.33
 #: Default discard threshold of eq (32) on ``max diag Q^i`` (m^2), chosen by simulation
 #: (see ``docs/theory/kim2013.md``); the paper determines it experimentally.
 DEFAULT_DISCARD_VAR_M2 = 0.012**2
+#: Accepted ranges (m) of :class:`DUHLConfig`'s wheel base, receiver radius, odometry
+#: noise and distance sigma: a robot from a toy to a truck, receivers within 100 m of
+#: the centre, sigma from a micrometre to 10 m (outside them the arithmetic over- or
+#: underflows into NaN poses, issue 17).
+WHEEL_BASE_RANGE_M = (1e-3, 100.0)
+R_R_RANGE_M = (1e-4, 100.0)
+K_V_RANGE_M = (0.0, 1.0)
+SIGMA_D_RANGE_M = (1e-6, 10.0)
+#: Largest wheel speed (m/s) and coordinate or distance (m) :func:`track_duhl` accepts.
+MAX_SPEED_MPS = 100.0
+MAX_COORD_M = 1e6
 #: Filters of :class:`DUHLConfig`.
 VARIANTS = ("duhl", "ranges")
 #: Meaning of :attr:`DUHLTrack.obs_status` codes.
@@ -128,10 +139,12 @@ class DUHLConfig:
     init_sigma: tuple[float, float, float] = (0.3, 0.3, math.radians(20.0))
 
     def __post_init__(self) -> None:
-        V.positive("wheel_base_m", self.wheel_base_m)
-        V.positive("r_R_m", self.r_R_m)
-        V.positive("k_v_m", self.k_v_m, allow_zero=True)
-        V.positive("sigma_d_m", self.sigma_d_m)
+        # physical bounds (issue 17): beyond them the filter's arithmetic under- or
+        # overflows and the poses come out NaN, so they are refused, not run
+        V.in_range("wheel_base_m", self.wheel_base_m, *WHEEL_BASE_RANGE_M)
+        V.in_range("r_R_m", self.r_R_m, *R_R_RANGE_M)
+        V.in_range("k_v_m", self.k_v_m, *K_V_RANGE_M)
+        V.in_range("sigma_d_m", self.sigma_d_m, *SIGMA_D_RANGE_M)
         V.positive("discard_var_m2", self.discard_var_m2)
         V.positive("d_th_m", self.d_th_m, allow_zero=True)
         V.positive("max_residual_m", self.max_residual_m)
@@ -256,6 +269,14 @@ def _check_inputs(odo_t, v_right, v_left, dist_t, dist_tx, dist_d, tx_xyz):
         raise InvalidParameterError(f"tx_xyz must have shape (n >= 2, 3), got {tx.shape}")
     if not np.all(np.isfinite(tx)):
         raise InvalidParameterError("tx_xyz contains NaN or infinite values")
+    for name, v, lim in (("v_right", vr, MAX_SPEED_MPS), ("v_left", vl, MAX_SPEED_MPS),
+                         ("dist_d", d, MAX_COORD_M), ("tx_xyz", tx, MAX_COORD_M)):  # fmt: skip
+        big = np.abs(np.nan_to_num(v)) > lim
+        if np.any(big):
+            raise InvalidParameterError(
+                f"{name} has a value of {v[big].flat[0]:.3g}, beyond +-{lim:g} (the filter's "
+                "arithmetic would overflow)"
+            )
     return odo_t, vr, vl, dist_t, dist_tx, d, tx
 
 
@@ -411,6 +432,14 @@ def track_duhl(
         float(config.max_residual_m),
         float(gate),
     )
+    bad = ~np.all(np.isfinite(poses), axis=1) | ~np.all(np.isfinite(covs), axis=(1, 2))
+    bad[:start] = False  # rows before the start pose are NaN by definition
+    if np.any(bad):
+        k = int(np.argmax(bad))
+        raise IncompatibleInputError(
+            f"the {config.variant} filter diverged at t_s={odo_t[k]:g} (non-finite pose); "
+            "the noise settings do not fit this log"
+        )
     track = DUHLTrack(
         t_s=odo_t,
         pose=poses,

@@ -57,6 +57,10 @@ MeasurementModel = Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]]
 Residual = Callable[[np.ndarray, np.ndarray], np.ndarray]
 
 
+#: Largest magnitude of any entry of a state, covariance, measurement or model matrix.
+MAX_ABS = 1e150
+
+
 # --------------------------------------------------------------------------- validation
 def _vector(name: str, v, n: int | None = None) -> np.ndarray:
     """Return ``v`` as a finite float64 vector (scalars become shape (1,))."""
@@ -70,6 +74,16 @@ def _vector(name: str, v, n: int | None = None) -> np.ndarray:
         raise InvalidParameterError(f"{name} must have shape ({n},), got shape {a.shape}")
     if not np.all(np.isfinite(a)):
         raise InvalidParameterError(f"{name} contains NaN or infinite values: {a!r}")
+    return _bounded(name, a)
+
+
+def _bounded(name: str, a: np.ndarray) -> np.ndarray:
+    """Refuse entries beyond :data:`MAX_ABS` (their products overflow float64, issue 17)."""
+    if a.size and float(np.max(np.abs(a))) > MAX_ABS:
+        raise InvalidParameterError(
+            f"{name} has an entry of magnitude {float(np.max(np.abs(a))):.3g}, beyond "
+            f"{MAX_ABS:g} (the filter's products would overflow)"
+        )
     return a
 
 
@@ -85,7 +99,7 @@ def _matrix(name: str, M, shape: tuple[int, int]) -> np.ndarray:
         raise InvalidParameterError(f"{name} must have shape {shape}, got shape {a.shape}")
     if not np.all(np.isfinite(a)):
         raise InvalidParameterError(f"{name} contains NaN or infinite values")
-    return a
+    return _bounded(name, a)
 
 
 def _covariance(name: str, M, n: int) -> np.ndarray:
@@ -106,6 +120,18 @@ def _covariance(name: str, M, n: int) -> np.ndarray:
                 f"{name} must be positive semidefinite, smallest eigenvalue {lam_min:.3g}"
             )
     return a
+
+
+def _finite_result(step: str, *arrays: np.ndarray) -> np.ndarray:
+    """Return the first array; raise if any is not finite (the inputs' magnitudes, e.g.
+    1e300, overflowed float64: issue 17). The filter refuses instead of returning NaN."""
+    for a in arrays:
+        if not np.all(np.isfinite(a)):
+            raise InvalidParameterError(
+                f"{step} overflowed: the magnitudes of the state, covariances or "
+                "measurement are beyond what float64 arithmetic can filter"
+            )
+    return arrays[0]
 
 
 def _symmetrise(P: np.ndarray) -> np.ndarray:
@@ -219,7 +245,9 @@ def predict(x, P, F: np.ndarray | MotionModel, Q) -> tuple[np.ndarray, np.ndarra
     P = _covariance("P", P, d)
     Q = _covariance("Q", Q, d)
     x_new, Fm = _linearise(F, x, d, model_name="F", matrix_name="F", value="x_new")
-    return x_new, _symmetrise(Fm @ P @ Fm.T + Q)
+    with np.errstate(over="ignore", invalid="ignore"):
+        P_new = _symmetrise(Fm @ P @ Fm.T + Q)
+    return x_new, _finite_result("predict", P_new)
 
 
 # --------------------------------------------------------------------------- update
@@ -345,19 +373,21 @@ def update(
     y = z - z_pred if residual is None else _vector("residual(z, z_pred)", residual(z, z_pred), m)
     threshold = _threshold(gate, gate_nis, m)
 
-    PHt = P @ H.T
-    S = _symmetrise(H @ PHt + R)
-    L = _cholesky("S = H P H^T + R", S)
-    w = np.linalg.solve(L, y)
-    nis = float(w @ w)
-    if nis > threshold:
-        return UpdateResult(x, P, y, S, nis, False)
-    # K^T = S^-1 H P  (S = L L^T): two solves with L (np.linalg.solve), no explicit inverse.
-    Kt = np.linalg.solve(L.T, np.linalg.solve(L, PHt.T))
-    K = Kt.T
-    x_new = x + K @ y
-    IKH = np.eye(d) - K @ H
-    P_new = _symmetrise(IKH @ P @ IKH.T + K @ R @ K.T)
+    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+        PHt = P @ H.T
+        S = _finite_result("update (S = H P H^T + R)", _symmetrise(H @ PHt + R))
+        L = _cholesky("S = H P H^T + R", S)
+        w = np.linalg.solve(L, y)
+        nis = float(w @ w)
+        if nis > threshold:
+            return UpdateResult(x, P, y, S, nis, False)
+        # K^T = S^-1 H P  (S = L L^T): two solves with L (np.linalg.solve), no inverse.
+        Kt = np.linalg.solve(L.T, np.linalg.solve(L, PHt.T))
+        K = Kt.T
+        x_new = x + K @ y
+        IKH = np.eye(d) - K @ H
+        P_new = _symmetrise(IKH @ P @ IKH.T + K @ R @ K.T)
+    _finite_result("update", x_new, P_new, np.asarray(nis))
     return UpdateResult(x_new, P_new, y, S, nis, True)
 
 

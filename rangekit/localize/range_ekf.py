@@ -68,7 +68,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from rangekit._validate import in_range, positive, positive_int
-from rangekit.errors import InvalidParameterError, LogFormatError
+from rangekit.errors import IncompatibleInputError, InvalidParameterError, LogFormatError
 from rangekit.io.tracklog import MeasurementLog
 from rangekit.localize.ekf import chi2_gate, predict, rts_smooth, update
 
@@ -87,10 +87,12 @@ KIND_ROBOT_RANGE, KIND_PAIR_RANGE, KIND_FIX_X, KIND_FIX_Y = 0, 1, 2, 3
 #: descendant of the one reported last before the filtered output switches to it.
 SWITCH_NATS = 3.0
 
-#: Prior log-odds (nats) against a target having switched to its mirror image between
-#: two epochs (p = 0.01): a fresh mirror hypothesis must out-explain its parent by this
-#: much before it ranks above it.
-MIRROR_PRIOR_NATS = 4.6
+#: Largest coordinate or range (m) a log may hold; variances up to its square.
+MAX_COORD_M = 1e6
+
+#: The iterated update stops when a step moves the state by less than this (squared
+#: norm, m²; the compiled kernel reads it from here).
+ITER_TOL_M2 = 1e-12
 
 
 def cv_transition(dt: float, n_targets: int, accel_psd) -> tuple[np.ndarray, np.ndarray]:
@@ -172,10 +174,21 @@ def _epochs(log: MeasurementLog, name: str) -> _Epochs:
         if var <= 0:
             raise LogFormatError(f"{name}: a range at t_s={G.t_s[i]:g} has sigma_m = 0")
         per[e].append((kind, int(G.a[i]) - 1, int(G.b[i]) - 1, G.range_m[i], var, 0.0, G.t_s[i]))
+    for what, v, lim in (("a position or range", robot_xy, MAX_COORD_M),
+                         ("a robot covariance", robot_P, MAX_COORD_M**2)):  # fmt: skip
+        if np.any(np.abs(v) > lim):
+            raise LogFormatError(f"{name}: {what} beyond {lim:g} (m or m²): not a tracking log")
     start = np.zeros(times.size + 1, dtype=np.int64)
     start[1:] = np.cumsum([len(p) for p in per])
     flat = [r for p in per for r in p]
     col = list(zip(*flat, strict=True))
+    vals = np.array(col[3], dtype=np.float64)
+    vars_ = np.array(col[4], dtype=np.float64)
+    if np.any(np.abs(vals) > MAX_COORD_M) or np.any(vars_ > MAX_COORD_M**2):
+        raise LogFormatError(
+            f"{name}: a range, fix or variance beyond {MAX_COORD_M:g} m ({MAX_COORD_M**2:g} "
+            "m²): not a tracking log (the filter's arithmetic would overflow)"
+        )
     return _Epochs(
         times,
         start,
@@ -321,9 +334,9 @@ def _hypotheses(ep: _Epochs, e: int, n_targets: int, n_ring: int, sigma_v: float
 class _Ctx:
     """Everything an epoch step needs besides the state (one per track_ranges call)."""
 
-    def __init__(self, ep, q, sign, thr, relock, sigma_v0):
+    def __init__(self, ep, q, sign, thr, relock, sigma_v0, n_iter):
         self.ep, self.q, self.sign, self.thr = ep, q, sign, thr
-        self.relock, self.sigma_v0 = relock, sigma_v0
+        self.relock, self.sigma_v0, self.n_iter = relock, sigma_v0, n_iter
         self.a0 = np.maximum(ep.a, 0)
         n_rows = ep.kind.size
         self.acc = np.zeros(n_rows, dtype=np.bool_)
@@ -331,9 +344,14 @@ class _Ctx:
         self.inno = np.full(n_rows, np.nan)
 
 
-def _step_compiled(c: _Ctx, x, P, streak, dt, e):
+#: ``mirror`` argument of the steps: linearise at the prior mean itself.
+NO_MIRROR = np.array([-1.0, 0.0, 0.0, 0.0, 0.0])
+
+
+def _step_compiled(c: _Ctx, x, P, streak, dt, e, mirror=NO_MIRROR):
     """One epoch with the compiled kernel. Returns (x, P, xp, Pp, ll, n_reinit, acc, nis)
-    with acc and nis for the epoch's rows; ``streak`` is updated in place."""
+    with acc and nis for the epoch's rows; ``streak`` is updated in place. ``mirror``
+    (:func:`_mirror_lines`) picks the branch the update is linearised on."""
     from rangekit.localize._kernels import epoch_step
 
     ep = c.ep
@@ -342,7 +360,7 @@ def _step_compiled(c: _Ctx, x, P, streak, dt, e):
     ll, n_re = epoch_step(
         x, P, xp, Pp, dt, e, ep.start, ep.kind, c.a0, ep.b, ep.val, ep.var, ep.cov,
         ep.robot_xy, ep.robot_P, c.q, c.sign, c.thr, KIND_PAIR_RANGE, c.relock, c.sigma_v0,
-        streak, c.acc, c.nis, c.inno,
+        streak, c.acc, c.nis, c.inno, c.n_iter, mirror,
     )  # fmt: skip
     lo, hi = ep.start[e], ep.start[e + 1]
     return x, P, xp, Pp, ll, n_re, c.acc[lo:hi].copy(), c.nis[lo:hi].copy()
@@ -360,13 +378,13 @@ def _run_single(c: _Ctx, e0: int, x0: np.ndarray, P0: np.ndarray):
     run_range_ekf(
         x0, P0, ep.t_s[e0], ep.t_s[e0:], ep.start[e0:], ep.kind, c.a0, ep.b, ep.val, ep.var,
         ep.cov, ep.robot_xy[e0:], ep.robot_P[e0:], c.q, c.sign, c.thr, KIND_PAIR_RANGE,
-        c.relock, c.sigma_v0, xs, Ps, xps, Pps, c.acc, c.nis, c.inno, ll, reinit,
+        c.relock, c.sigma_v0, c.n_iter, xs, Ps, xps, Pps, c.acc, c.nis, c.inno, ll, reinit,
     )  # fmt: skip
     rows = [slice(ep.start[e], ep.start[e + 1]) for e in range(e0, ep.t_s.size)]
     acc_rows = [c.acc[r].copy() for r in rows]
     nis_rows = [c.nis[r].copy() for r in rows]
     mixed = (xs, Ps, np.ones((n, d // 4)))
-    return xs, Ps, ll, acc_rows, nis_rows, (xs, Ps, xps, Pps, [None] * n), reinit, mixed
+    return xs, Ps, ll, acc_rows, nis_rows, (xs, Ps, xps, Pps, np.zeros(n, bool)), reinit, mixed
 
 
 def _h_rows(ep: _Epochs, rows: np.ndarray, rxy: np.ndarray):
@@ -394,37 +412,69 @@ def _h_rows(ep: _Epochs, rows: np.ndarray, rxy: np.ndarray):
     return h
 
 
-def _update_numpy(c: _Ctx, e, x, P, thr):
+def _update_numpy(c: _Ctx, e, x, P, thr, xlin):
+    """Reference of :func:`rangekit.localize._kernels.epoch_update`: gate at ``xlin``,
+    then iterate :func:`update` on the model linearised at the last estimate."""
     ep = c.ep
     rows = np.arange(ep.start[e], ep.start[e + 1])
-    zh, H = _h_rows(ep, rows, ep.robot_xy[e])(x)
+    h_all = _h_rows(ep, rows, ep.robot_xy[e])
     cross = "physical" if c.sign > 0 else "paper"
-    R = measurement_covariance(
-        ep.kind[rows], ep.b[rows], ep.robot_xy[e], ep.robot_P[e], x, ep.var[rows],
-        ep.cov[rows], cross_sign=cross,
-    )  # fmt: skip
-    S = H @ P @ H.T + R
+
+    def lin(h, xl):
+        """``h`` made affine about ``xl`` (the iterated EKF's model)."""
+        zl, Hl = h(xl)
+        return lambda v: (zl + Hl @ (v - xl), Hl)
+
+    def R_at(sel, xl):
+        R = measurement_covariance(
+            ep.kind[rows], ep.b[rows], ep.robot_xy[e], ep.robot_P[e], xl, ep.var[rows],
+            ep.cov[rows], cross_sign=cross,
+        )  # fmt: skip
+        return R[np.ix_(sel, sel)]
+
+    every = np.ones(rows.size, dtype=bool)
+    zh, H = lin(h_all, xlin)(x)
+    S = H @ P @ H.T + R_at(every, xlin)
     y = ep.val[rows] - zh
     marg = y**2 / np.diag(S)
     keep = ~((ep.kind[rows] <= KIND_PAIR_RANGE) & (marg > thr))
-    lk = -0.5 * float(np.sum(thr + np.log(np.diag(S)[~keep]) + np.log(2 * np.pi)))
+    lk0 = -0.5 * float(np.sum(thr + np.log(np.diag(S)[~keep]) + np.log(2 * np.pi)))
+    lk = lk0
     if np.any(keep):
         kept = rows[keep]
-        res = update(x, P, ep.val[kept], _h_rows(ep, kept, ep.robot_xy[e]), R[np.ix_(keep, keep)])
-        x, P = res.x, res.P
+        h_kept = _h_rows(ep, kept, ep.robot_xy[e])
+        xl = xlin
+        for it in range(c.n_iter):
+            res = update(x, P, ep.val[kept], lin(h_kept, xl), R_at(keep, xl))
+            if it + 1 == c.n_iter or np.sum((res.x - xl) ** 2) < ITER_TOL_M2:
+                break
+            xl = res.x
         _, logdet = np.linalg.slogdet(res.S)
-        lk -= 0.5 * (res.nis + logdet + kept.size * np.log(2 * np.pi))
+        lk = lk0 - 0.5 * (res.nis + logdet + kept.size * np.log(2 * np.pi))
+        x, P = res.x, res.P
     return x, P, lk, rows, keep, marg, y
 
 
-def _step_numpy(c: _Ctx, x, P, streak, dt, e):
+def _mirror_point(xp: np.ndarray, mirror: np.ndarray) -> np.ndarray:
+    """The prior mean with the position block ``mirror[0]`` reflected (or ``xp``)."""
+    o = int(mirror[0])
+    xl = xp.copy()
+    if o >= 0:
+        p0, u = mirror[1:3], mirror[3:5]
+        dv = xp[o : o + 2] - p0
+        xl[o : o + 2] = p0 + 2 * (dv @ u) * u - dv
+    return xl
+
+
+def _step_numpy(c: _Ctx, x, P, streak, dt, e, mirror=NO_MIRROR):
     """Reference for :func:`_step_compiled`: the validated core (:func:`predict`,
     :func:`update`) and the same lock-out breaker, in plain numpy."""
     ep = c.ep
     n_t = x.size // 4
     F, Q = cv_transition(dt, n_t, c.q)
     xp, Pp = predict(x, P, F, Q)
-    x, P, ll, rows, keep, marg, y = _update_numpy(c, e, xp, Pp, c.thr)
+    xlin = _mirror_point(xp, mirror)
+    x, P, ll, rows, keep, marg, y = _update_numpy(c, e, xp, Pp, c.thr, xlin)
     Pp = Pp.copy()
     n_re = 0
     for j in range(n_t):
@@ -446,18 +496,18 @@ def _step_numpy(c: _Ctx, x, P, streak, dt, e):
             streak[j] = 0
             n_re += 1
     if n_re:
-        x, P, ll, rows, keep, marg, y = _update_numpy(c, e, xp, Pp, np.inf)
+        x, P, ll, rows, keep, marg, y = _update_numpy(c, e, xp, Pp, np.inf, xlin)
     return x, P, xp, Pp, ll, n_re, keep, marg
 
 
-def _mirror_map(ep: _Epochs, e: int, n_t: int) -> list[tuple[np.ndarray, np.ndarray, int]]:
-    """Reflections of the state for the targets ranged from two known points at epoch e.
+def _mirror_lines(ep: _Epochs, e: int, n_t: int) -> list[np.ndarray]:
+    """The lines of mirror ambiguity at epoch e, one per target ranged from two known points.
 
     A target ranged from the robot and from a target with a fix is determined by the two
     ranges only up to its mirror image in the line through them (Jiang 2018 §4.4.3: the
-    density is multi-modal). Returns one affine map ``x -> T x + shift`` per such target,
-    as ``(T (d, d), shift (d,), offset of the target's block)``: it reflects that target's
-    position (about the line) and velocity, and leaves the rest.
+    density is multi-modal). Returns ``[o, p_x, p_y, u_x, u_y]`` per such target: the
+    offset of its block in the state, a point of the line (the robot) and its unit
+    direction (towards the fixed target), the ``mirror`` argument of the steps.
     """
     lo, hi = ep.start[e], ep.start[e + 1]
     fixes = {int(ep.b[r]): (ep.val[r], ep.val[r + 1]) for r in range(lo, hi) if ep.kind[r] == 2}
@@ -477,15 +527,7 @@ def _mirror_map(ep: _Epochs, e: int, n_t: int) -> list[tuple[np.ndarray, np.ndar
         nu = float(np.hypot(*u))
         if nu < 1e-6:
             continue
-        u /= nu
-        M = 2 * np.outer(u, u) - np.eye(2)
-        T = np.eye(4 * n_t)
-        o = 4 * j
-        T[o : o + 2, o : o + 2] = M
-        T[o + 2 : o + 4, o + 2 : o + 4] = M
-        shift = np.zeros(4 * n_t)
-        shift[o : o + 2] = p0 - M @ p0
-        out.append((T, shift, o))
+        out.append(np.array([4.0 * j, p0[0], p0[1], u[0] / nu, u[1] / nu]))
     return out
 
 
@@ -498,21 +540,32 @@ class _Hyp:
     slot: int  # row in the history arrays
 
 
+#: Candidates whose target positions all lie within this of a better one are dropped (m).
+MERGE_M = 0.25
+
+
 def _run_bank(c: _Ctx, e0: int, hyps, step, *, n_keep: int, mirror: bool):
-    """Filter with a bank of Gaussian hypotheses: start from ``hyps``; at every epoch
-    each hypothesis also spawns its mirror images (``mirror=True``), every candidate is
-    updated, and the ``n_keep`` with the highest cumulative likelihood survive
-    (candidates whose positions lie within 0.25 m of a better one are dropped).
+    """Filter with a bank of Gaussian hypotheses (a Gaussian-sum filter with pruning).
+
+    Start from ``hyps``. At every epoch each hypothesis is predicted and updated, and,
+    for every target whose ranges leave a mirror ambiguity (``mirror=True``,
+    :func:`_mirror_lines`), also updated a second time linearised on the other branch:
+    the iterated update from the mirror image of the prior mean converges to the other
+    mode of the same posterior. Both children condition on the same past (their
+    parent's prediction), so each is weighted by its own measurement likelihood and
+    nothing else: the mirror child is the alternative history, not a jump of the
+    target. The ``n_keep`` candidates with the highest cumulative likelihood survive
+    (candidates whose positions lie within :data:`MERGE_M` of a better one are dropped).
 
     Returns the reported hypothesis's per-epoch means, covariances, log-likelihoods,
-    row flags and NIS (causal), the lineage of the final best (for smoothing) and the
-    re-opened target counts.
+    row flags and NIS (causal), the lineage of the final best (for smoothing), the
+    re-opened target counts and the bank as a mixture.
     """
     ep = c.ep
     n = ep.t_s.size - e0
     n_t = hyps[0][0].size // 4
     bank = [_Hyp(x0, P0, np.zeros(n_t, dtype=np.int64), 0.0, -1) for x0, P0 in hyps]
-    hist: list[list[tuple]] = []  # per epoch: list of (x, P, xp, Pp, parent, ll, acc, nis)
+    hist: list[list[tuple]] = []  # per epoch: list of (x, P, xp, Pp, parent, ll, acc, nis, m)
     t = ep.t_s[e0]
     best_idx = np.zeros(n, dtype=np.int64)
     reported = 0
@@ -523,27 +576,30 @@ def _run_bank(c: _Ctx, e0: int, hyps, step, *, n_keep: int, mirror: bool):
         dt = ep.t_s[e] - t
         t = ep.t_s[e]
         cands = []
-        mirrors = _mirror_map(ep, e, n_t) if mirror else []
+        lines = [NO_MIRROR] + (_mirror_lines(ep, e, n_t) if mirror else [])
         for h in bank:
-            variants = [(h.x, h.P, 0.0, None)]
-            for T, shift, o in mirrors:
-                xm = T @ h.x + shift
-                if np.hypot(*(xm[o : o + 2] - h.x[o : o + 2])) > 0.25:
-                    variants.append((xm, T @ h.P @ T.T, MIRROR_PRIOR_NATS, T))
-            for xv, Pv, penalty, T in variants:
+            for i_line, line in enumerate(lines):
                 streak = h.streak.copy()
-                x, P, xp, Pp, ll, n_re, acc, nis = step(c, xv, Pv, streak, dt, e)
-                cum = h.cum + ll - penalty
-                cands.append((cum, x, P, xp, Pp, streak, h.slot, ll, acc, nis, n_re, T))
+                x, P, xp, Pp, ll, n_re, acc, nis = step(c, h.x, h.P, streak, dt, e, line)
+                cum = h.cum + ll
+                cands.append((cum, x, P, xp, Pp, streak, h.slot, ll, acc, nis, n_re, i_line > 0))
         cands.sort(key=lambda r: -r[0])
-        kept = []
+        kept: list[tuple] = []
         for cd in cands:
             pos = cd[1].reshape(-1, 4)[:, :2]
-            if any(np.max(np.hypot(*(pos - kk[1].reshape(-1, 4)[:, :2]).T)) < 0.25 for kk in kept):
+            near = [
+                i for i, kk in enumerate(kept)
+                if np.max(np.hypot(*(pos - kk[1].reshape(-1, 4)[:, :2]).T)) < MERGE_M
+            ]  # fmt: skip
+            if near:
+                # the same mode reached from another parent or branch: its weight joins
+                # the better candidate's (the mixture's mass there), its state is dropped
+                i = near[0]
+                kept[i] = (float(np.logaddexp(kept[i][0], cd[0])), *kept[i][1:])
                 continue
-            kept.append(cd)
-            if len(kept) == n_keep:
-                break
+            if len(kept) < n_keep:
+                kept.append(cd)
+        kept.sort(key=lambda r: -r[0])
         hist.append(
             [(cd[1], cd[2], cd[3], cd[4], cd[6], cd[7], cd[8], cd[9], cd[11]) for cd in kept]
         )
@@ -577,7 +633,7 @@ def _run_bank(c: _Ctx, e0: int, hyps, step, *, n_keep: int, mirror: bool):
         np.stack([r[1] for r in line]),
         np.stack([r[2] for r in line]),
         np.stack([r[3] for r in line]),
-        [r[8] for r in line],  # the mirror map applied before epoch k's prediction, or None
+        np.array([r[8] for r in line]),  # updated on the mirror branch at epoch k
     )
     mixed = tuple(np.stack([m[i] for m in mix]) for i in range(3))
     return xs, Ps, ll, acc_rows, nis_rows, smooth_in, n_reinit, mixed
@@ -613,19 +669,15 @@ def _smooth_lineage(smooth_in, t_s: np.ndarray, n_t: int, q: np.ndarray):
     """RTS over one lineage of the bank (Rauch et al. 1965 through
     :func:`rangekit.localize.ekf.rts_smooth`).
 
-    A lineage that passed through a mirror hypothesis was predicted at epoch k+1 from
-    ``T x_k + shift`` (the reflection of :func:`_mirror_map`), not from ``x_k``; the
-    transition the smoother needs is then ``F_k T`` (the jump is part of the model the
-    filter ran). Using ``F_k`` alone made ``P⁻_{k+1}`` and ``F_k P_k F_k^T`` disagree
-    and the smoothed variances negative (issue 18).
+    Every hypothesis is the prediction of its parent (``F_k``) updated, on either branch,
+    so the transition of the lineage is ``F_k`` throughout (the former mirror *jump*
+    needed ``F_k T`` and, without it, gave negative smoothed variances: issue 18).
     """
-    xf, Pf, xp, Pp, jumps = smooth_in
+    xf, Pf, xp, Pp, _ = smooth_in
     d = 4 * n_t
     Fs = np.empty((max(t_s.size - 1, 0), d, d))
     for k, dt in enumerate(np.diff(t_s)):
-        F = cv_transition(dt, n_t, q)[0]
-        T = jumps[k + 1]
-        Fs[k] = F if T is None else F @ T
+        Fs[k] = cv_transition(dt, n_t, q)[0]
     return rts_smooth(xf, Pf, xp, Pp, Fs)
 
 
@@ -752,6 +804,7 @@ def track_ranges(
     relock: int = 3,
     n_keep: int = 8,
     mirror: bool = True,
+    iterations: int = 5,
     engine: str = "compiled",
     name: str = "log",
 ) -> RangeTrack:
@@ -807,14 +860,15 @@ def track_ranges(
         a target never initialisable, too many initial hypotheses.
     """
     q_in = np.atleast_1d(np.asarray(accel_psd, dtype=np.float64))
-    q_list = [positive("accel_psd", float(v)) for v in q_in]
+    q_list = [in_range("accel_psd", positive("accel_psd", float(v)), 0.0, 1e6) for v in q_in]
     thr = math.inf if gate is None else chi2_gate(in_range("gate", gate, 0.0, 1.0), 1)
     sign = _sign(cross_sign)
-    sigma_v0 = positive("sigma_v0", sigma_v0)
+    sigma_v0 = in_range("sigma_v0", positive("sigma_v0", sigma_v0), 0.0, 1e3)
     n_ring = positive_int("n_ring", n_ring, minimum=2)
     max_hypotheses = positive_int("max_hypotheses", max_hypotheses)
     relock = positive_int("relock", relock)
     n_keep = positive_int("n_keep", n_keep)
+    iterations = positive_int("iterations", iterations)
     if engine not in ("compiled", "numpy"):
         raise InvalidParameterError(f"engine={engine!r} must be 'compiled' or 'numpy'")
     ep = _epochs(log, name)
@@ -842,13 +896,19 @@ def track_ranges(
             f"{name}: starting needs {len(hyps)} initial hypotheses (> max_hypotheses="
             f"{max_hypotheses}); give fixes or more ranges at the first epoch"
         )
-    ctx = _Ctx(ep, q, sign, thr, relock, sigma_v0)
+    ctx = _Ctx(ep, q, sign, thr, relock, sigma_v0, iterations)
     if engine == "compiled" and len(hyps) == 1 and not mirror:
         xs, Ps, ll, acc_rows, nis_rows, smooth_in, n_reinit, mixed = _run_single(ctx, e0, *hyps[0])
     else:
         step = _step_compiled if engine == "compiled" else _step_numpy
         xs, Ps, ll, acc_rows, nis_rows, smooth_in, n_reinit, mixed = _run_bank(
             ctx, e0, hyps, step, n_keep=max(n_keep, 1), mirror=mirror
+        )
+    if not (np.all(np.isfinite(xs)) and np.all(np.isfinite(Ps))):
+        k_bad = int(np.argmax(~np.all(np.isfinite(xs), axis=1)))
+        raise IncompatibleInputError(
+            f"{name}: the filter diverged at t_s={ep.t_s[e0 + k_bad]:g} (non-finite state); "
+            "the noise settings (accel_psd, sigma_v0) do not fit this log"
         )
     rejected = []
     for kk, e in enumerate(range(e0, ep.t_s.size)):
@@ -859,7 +919,7 @@ def track_ranges(
                              float(ep.val[r]), float(nis_rows[kk][i]))
                 )  # fmt: skip
     xsm = Psm = same = None
-    n_jumps = sum(T is not None for T in smooth_in[4])
+    n_jumps = int(np.sum(smooth_in[4]))
     if smooth:
         xsm, Psm = _smooth_lineage(smooth_in, ep.t_s[e0:], n_t, q)
         same = np.all(smooth_in[1] == Ps, axis=(1, 2)) & np.all(smooth_in[0] == xs, axis=1)
