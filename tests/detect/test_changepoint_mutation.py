@@ -1,0 +1,115 @@
+"""Change-point detector: documented thresholds and rules pinned one by one.
+
+Written against the mutants of ``rangekit/detect/changepoint.py`` that its other tests let
+through (``benchmarks/mutation.py``, docs/evidence.md). Each test states the rule of the
+module it checks; short synthetic inputs only.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from rangekit.detect import changepoint as cp
+from rangekit.signals import Beep, beep_waveform
+from rangekit.types import Arrivals, flag_bit
+
+
+@pytest.mark.parametrize(("noise", "low"), [(0.2, False), (0.3, False), (0.4, True)])
+def test_low_snr_flag_is_a_median_burst_snr_below_10_db(noise, low):
+    """Measured SNR 15.9, 12.0 and 9.0 dB (seed 0): flagged exactly below LOW_SNR_DB."""
+    b = Beep()
+    x = np.zeros(30000)
+    x[1000 : 1000 + b.duration_samples] = beep_waveform(b)
+    x += noise * np.random.default_rng(0).standard_normal(len(x))
+    arr = cp.detect_changepoint(x, fs=b.fs, beep=b)
+    assert len(arr) == 1
+    assert ("low_snr" in arr.flag_names(0)) == low == (arr.snr_db[0] < cp.LOW_SNR_DB)
+    assert cp.LOW_SNR_DB == 10.0
+
+
+def test_change_points_rise_strictly_above_the_threshold():
+    """A frame counts when its energy is *above* max(floor x threshold, recent x rise)."""
+    kw = {"n_win": 128, "hop": 32, "threshold_db": 10.0, "rise_db": 10.0, "floor": None}
+    e = np.ones(40)
+    e[30:] = 10.0  # exactly 10 dB over the floor and over the level before
+    assert cp._change_points(e, **{**kw, "floor": np.ones(40)}).tolist() == []
+    e[30:] = 10.0 * (1 + 1e-9)
+    assert cp._change_points(e, **{**kw, "floor": np.ones(40)}).tolist() == [30]
+    assert cp._change_points(np.zeros(0), **kw).shape == (0,)
+
+
+def test_anchor_of_a_one_burst_beep_is_its_change_point():
+    e = np.ones(100)
+    assert cp._anchor(1234, e, hop=32, n_win=128, spacing=5000.0, beep=Beep(n_bursts=1),
+                      fs=44100.0) == (1234, 1)  # fmt: skip
+
+
+def _frames_before(far, near, *, n=400):
+    """Band energy per frame: ``far`` level, then ``near`` level just before frame ``n``."""
+    e = np.full(n, float(far))
+    e[n - 30 : n] = near
+    return e
+
+
+def test_precursor_rising_10_db_flags_an_ambiguous_first_path():
+    """Within PRE_NEAR_S before the onset, 8 frames PRE_RISE_DB (10 dB) above the level
+    before: ``ambiguous_first_path``; 8 dB is not enough, 12 dB is."""
+    hop, n_win, fs = 32, 128, 44100.0
+    t0 = 400 * hop + n_win  # the onset: frame 400 is the first not wholly before it
+    bit = flag_bit("ambiguous_first_path")
+    for rise_db, flagged in ((8.0, False), (12.0, True)):
+        e = _frames_before(1.0, 10 ** (rise_db / 10))
+        got = cp._before_onset_flags(e, t0, hop=hop, n_win=n_win, fs=fs, quiet=1.0)
+        assert bool(got & bit) == flagged, rise_db
+    assert (
+        cp._before_onset_flags(np.ones(10), 5 * hop + n_win, hop=hop, n_win=n_win, fs=fs, quiet=1.0)
+        == 0
+    )  # fmt: skip  (too close to the start)
+
+
+def test_reverb_limited_is_a_level_4_times_the_quiet_one():
+    hop, n_win, fs = 32, 128, 44100.0
+    t0 = 400 * hop + n_win
+    bit = flag_bit("reverb_limited")
+    e = np.ones(400)
+    for quiet, flagged in ((0.26, False), (0.24, True), (0.0, False)):
+        got = cp._before_onset_flags(e, t0, hop=hop, n_win=n_win, fs=fs, quiet=quiet)
+        assert bool(got & bit) == flagged, quiet
+
+
+def _row(t0, onsets, strength):
+    ons = np.asarray(onsets, dtype=float)
+    return (t0, 1.0, 20.0, 1.0, ons, 0, strength)
+
+
+def test_alias_groups_sharing_two_bursts_keep_the_stronger():
+    """One beep indexed two ways (a noise change point one spacing early): groups that
+    share two or more burst onsets within ``tol`` are one beep; the stronger stays."""
+    real = _row(5000.0, [5000.0, 10000.0, 15000.0, 20000.0], 400.0)
+    alias = _row(0.0, [0.0, 5000.5, 10000.5, np.nan], 300.0)
+    assert cp._resolve_aliases([alias, real], tol=1.0) == [real]
+    assert cp._resolve_aliases([alias, real], tol=0.4) == [alias, real]  # none shared
+    one = _row(0.0, [0.0, 5000.5, 11000.0, np.nan], 300.0)  # shares one burst only
+    assert cp._resolve_aliases([one, real], tol=1.0) == [one, real]
+    stronger = _row(0.0, [0.0, 5000.5, 10000.5, np.nan], 500.0)
+    assert cp._resolve_aliases([stronger, real], tol=1.0) == [stronger]
+    same_start = _row(5000.5, [5000.5, 10000.5, 14000.0], 100.0)  # same beep start: kept
+    assert len(cp._resolve_aliases([same_start, real], tol=1.0)) == 2
+
+
+def _arrivals(onsets, confidence):
+    n = len(onsets)
+    z = np.zeros(n)
+    conf = np.asarray(confidence, dtype=float)
+    return Arrivals(np.asarray(onsets, dtype=float), 44100.0, z + 0.1, z + 20.0, conf,
+                    np.zeros((n, 4)), "changepoint")  # fmt: skip
+
+
+def test_drop_echoes_keeps_the_earlier_unless_the_later_agrees_more():
+    arr = _arrivals([1000.0, 1500.0, 3000.0], [1.0, 1.0, 0.75])
+    assert cp.drop_echoes(arr, duration=1000.0).onset.tolist() == [1000.0, 3000.0]
+    # an arrival exactly one duration later starts a new one
+    assert cp.drop_echoes(arr, duration=500.0).onset.tolist() == [1000.0, 1500.0, 3000.0]
+    better = _arrivals([1000.0, 1500.0], [0.75, 1.0])
+    assert cp.drop_echoes(better, duration=1000.0).onset.tolist() == [1500.0]
