@@ -18,6 +18,7 @@ from rangekit_cli._options import (
     template_option,
     ultrasonic_kwargs,
     ultrasonic_options,
+    verbosity_options,
 )
 from rangekit_cli.range_cmd import calibration_option
 
@@ -102,12 +103,7 @@ def _one_thread_per_worker() -> None:
 @calibration_option
 @beep_options
 @ultrasonic_options
-@click.option(
-    "--quiet",
-    "-q",
-    is_flag=True,
-    help="No progress or summary on stderr (errors are still reported).",
-)
+@verbosity_options
 @debug_option
 def batch_cmd(
     inputs,
@@ -124,7 +120,6 @@ def batch_cmd(
     detector,
     template,
     calibration,
-    quiet,
     **kw,
 ):
     """Range every session found in files, folders and globs; one results file.
@@ -137,9 +132,10 @@ def batch_cmd(
     folder per device and files of the same name are paired (see the option).
 
     Writes one row per range (or one error row per failed session) to -o as sessions
-    finish; progress (done/total, rate, ETA) on stderr. A bad file becomes an error row
-    and the batch goes on. Exit 0: every session ranged; 8: some failed; 9: none ranged;
-    130: interrupted (rerun with --resume).
+    finish, the options to -o's FILE.meta.json; progress (done/total, rate, ETA) on
+    stderr (-q: none; -v: also the scheme, detector and first failure). A bad file
+    becomes an error row and the batch goes on. Exit 0: every session ranged; 8: some
+    failed; 9: none ranged; 130: interrupted (rerun with --resume).
 
     \b
     Examples:
@@ -151,6 +147,8 @@ def batch_cmd(
       rangekit batch --pair-by-name phone_a/ phone_b/ -o results.csv --self-distance 0.1
     """
     _one_thread_per_worker()
+    from rangekit_cli._options import detail, is_quiet
+
     from rangekit.batch import BatchOptions, find_sessions, pair_sessions_by_name, run_batch
 
     if scheduler is not None and jobs is not None:
@@ -196,6 +194,7 @@ def batch_cmd(
     n_jobs = jobs if jobs is not None else (os.cpu_count() or 1)
     where = f"on {scheduler}" if scheduler else f"{n_jobs} job{'s' if n_jobs != 1 else ''}"
     state: dict = {"bar": None, "last": 0}
+    quiet = is_quiet()
 
     def progress(done: int, total: int) -> None:
         if quiet:
@@ -205,6 +204,7 @@ def batch_cmd(
             from rangekit_cli._progress import Progress
 
             click.echo(f"batch: {len(sessions)} sessions, {where} -> {output}", err=True)
+            _details(options, sessions, output)
             if done:
                 click.echo(f"batch: {done} sessions already in {output}, skipped", err=True)
             state["bar"] = Progress(total - done, "batch", unit="sessions")
@@ -242,7 +242,37 @@ def batch_cmd(
             err=True,
         )
     if summary.failed:
+        if not quiet:
+            detail(f"batch: first failed session: {_first_failure(output)}")
         click.get_current_context().exit(EXIT_ALL_FAILED if summary.ok == 0 else EXIT_SOME_FAILED)
+
+
+def _details(options, sessions, output) -> None:
+    """With --verbose: what was chosen (stderr), before the progress."""
+    from rangekit_cli._options import detail
+
+    from rangekit.batch import meta_path
+
+    d = options.beepbeep.get("detector") or "changepoint"
+    given = "probe (--template)" if "probe" in options.beepbeep else f"detector {d}"
+    by_sidecar = sum(bool(s.scheme or s.params) for s in sessions)
+    detail(
+        f"batch: scheme {options.scheme}, {given}; {by_sidecar} of {len(sessions)} sessions "
+        "take their scheme or setup from a sidecar"
+    )
+    if options.pair_by_name:
+        detail("batch: sessions paired by name across the device folders")
+    detail(f"batch: options recorded in {meta_path(output)}")
+
+
+def _first_failure(output) -> str:
+    """``SESSION: ERROR`` of the first error row of the results file."""
+    from rangekit.batch import iter_rows
+
+    for r in iter_rows(output):
+        if r["status"] == "error":
+            return f"{r['session']}: {r['error']}"
+    return "-"
 
 
 def _probe_and_calibration(template, calibration, scheme, sd, kw, beepbeep, ultra) -> None:

@@ -92,6 +92,36 @@ def test_options_reach_the_sessions(good, tmp_path):
     assert all(x["true_distance_m"] == "" for x in _rows(a))
 
 
+def test_verbose_says_what_was_chosen_quiet_nothing_same_rows(good, tmp_path):
+    """--verbose (the shared verbosity_options) adds what was chosen; -q drops every note;
+    the results file is the same byte for byte."""
+    src = tmp_path / "src"
+    src.mkdir()
+    for f in ("s0.wav", "s0.json"):
+        shutil.copy(good / f, src / f)
+    (src / "broken.wav").write_text("not audio")
+    err = {}
+    for flag in ("-q", "", "-v"):
+        out = tmp_path / f"r{flag}.csv"
+        r = run(["batch", src, "-o", out, "-j", 1, *([flag] if flag else [])])
+        assert r.exit_code == EXIT_SOME_FAILED, r.stderr
+        err[flag] = r.stderr.replace(out.name, "r.csv").splitlines()
+    assert err["-q"] == []
+    body = {(tmp_path / f"r{flag}.csv").read_bytes() for flag in err}
+    assert len(body) == 1
+    extra = [ln for ln in err["-v"] if ln not in err[""]]
+    assert extra == [
+        "batch: scheme beepbeep, detector changepoint; 1 of 2 sessions take their scheme or "
+        "setup from a sidecar",
+        f"batch: options recorded in {tmp_path / 'r.csv.meta.json'}",
+        f"batch: first failed session: {src / 'broken.wav'}: '{src / 'broken.wav'}' is not a "
+        "readable audio file (Format not recognised.)",
+    ]
+    assert [ln for ln in err["-v"] if ln in err[""]] == [ln for ln in err[""]]
+    assert_error(run(["batch", src, "-o", tmp_path / "x.csv", "-q", "-v"]), 2, "--quiet")
+    assert not (tmp_path / "x.csv").exists()
+
+
 @pytest.mark.parametrize(
     ("args", "code", "named"),
     [
@@ -146,6 +176,7 @@ def test_help_names_the_rules():
     r = ok(run(["batch", "--help"]))
     for s in ("--resume", "--jobs", "--scheduler", "_dev0", "sidecar", "docs/batch.md"):
         assert s in r.stdout
+    assert "-q, --quiet" in r.stdout and "-v, --verbose" in r.stdout
 
 
 def test_ultrasonic_sessions_from_their_sidecars(tmp_path):
