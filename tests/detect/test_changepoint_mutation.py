@@ -113,3 +113,36 @@ def test_drop_echoes_keeps_the_earlier_unless_the_later_agrees_more():
     assert cp.drop_echoes(arr, duration=500.0).onset.tolist() == [1000.0, 1500.0, 3000.0]
     better = _arrivals([1000.0, 1500.0], [0.75, 1.0])
     assert cp.drop_echoes(better, duration=1000.0).onset.tolist() == [1500.0]
+
+
+def test_expected_drops_only_as_many_doubtful_arrivals_as_needed_weakest_first():
+    """Three beeps, two of them doubtful (low_snr; the last also inconsistent_bursts):
+    ``expected=2`` drops one, the one with fewer agreeing bursts; ``expected=1`` both."""
+    b = Beep()
+    w = beep_waveform(b)
+    x = np.zeros(70000)
+    for amp, t in ((1.0, 1000), (0.25, 22000), (0.2, 44000)):
+        x[t : t + len(w)] += amp * w
+    x += 0.1 * np.random.default_rng(1).standard_normal(len(x))
+    found = {e: np.round(cp.detect_changepoint(x, fs=b.fs, beep=b, expected=e).onset, -3)
+             for e in (None, 3, 2, 1)}  # fmt: skip
+    assert found[None].tolist() == found[3].tolist() == [1000.0, 22000.0, 44000.0]
+    assert found[2].tolist() == [1000.0, 22000.0]
+    assert found[1].tolist() == [1000.0]
+
+
+@pytest.mark.parametrize(
+    ("dc", "hum", "flagged"),
+    [(0.0, 0.0, False), (0.5, 0.0, False), (0.0, 5.0, True), (3.0, 0.0, True)],
+)
+def test_energy_outside_the_band_flags_dc_or_lowband(dc, hum, flagged):
+    """Out-of-band over in-band energy above OOB_RATIO (100) flags the arrival; the onset
+    is still found (the fit reads band-limited stretches)."""
+    b = Beep()
+    x = np.zeros(30000)
+    x[1000 : 1000 + b.duration_samples] = beep_waveform(b)
+    x += 0.01 * np.random.default_rng(0).standard_normal(len(x))
+    x += dc + hum * np.sin(2 * np.pi * 50.0 * np.arange(len(x)) / b.fs)
+    arr = cp.detect_changepoint(x, fs=b.fs, beep=b)
+    assert len(arr) == 1 and abs(arr.onset[0] - 1000.0) < 0.1
+    assert ("dc_or_lowband" in arr.flag_names(0)) == flagged
