@@ -950,14 +950,36 @@ def _reinit(world: _World, cfg: ParticleConfig, est: np.ndarray, ctx: _StepCtx, 
 
 
 def _sir_likelihood(world: _World, cfg: ParticleConfig, start, xy, ctx: _StepCtx) -> np.ndarray:
-    """Product over the step's readings of the SRF02 mixture likelihood (see Notes)."""
+    """Product over the step's readings of the SRF02 mixture likelihood (see Notes),
+    compiled (``_particle_kernels.sir_likelihood``); :func:`_sir_likelihood_reference`'s
+    numbers bit for bit."""
+    n = xy.shape[0]
+    if cfg.mode != "ranging" or ctx.sensors.size == 0:
+        return np.ones(n)
+    s = world.sensor
+    delta = world.model(start, xy, ctx)
+    return world.K.sir_likelihood(
+        delta, ctx.meas, bias=_slip_bias(s), sig=math.hypot(s.noise_sigma_m, cfg.range_sigma_m),
+        p_outlier=cfg.p_outlier, p_miss=cfg.p_miss, dmax=s.max_range_m,
+    )  # fmt: skip
+
+
+def _slip_bias(s: SRF02) -> float:
+    """Mean range added by the SRF02 model's slips, m."""
+    return s.slip_step_m * sum((i + 1) * p for i, p in enumerate(s.slip_probs))
+
+
+def _sir_likelihood_reference(
+    world: _World, cfg: ParticleConfig, start, xy, ctx: _StepCtx
+) -> np.ndarray:
+    """numpy reference of :func:`_sir_likelihood`."""
     n = xy.shape[0]
     if cfg.mode != "ranging" or ctx.sensors.size == 0:
         return np.ones(n)
     s = world.sensor
     delta = world.model(start, xy, ctx)
     sig = math.hypot(s.noise_sigma_m, cfg.range_sigma_m)
-    bias = s.slip_step_m * sum((i + 1) * p for i, p in enumerate(s.slip_probs))
+    bias = _slip_bias(s)
     dmax = s.max_range_m
     like = np.ones(n)
     for j in range(ctx.sensors.size):
@@ -974,13 +996,34 @@ def _sir_likelihood(world: _World, cfg: ParticleConfig, start, xy, ctx: _StepCtx
     return like
 
 
-def _sir_step(world: _World, cfg: ParticleConfig, xy, w, ctx: _StepCtx, g):
-    """Propagate, eliminate wall crossings, weight; None when every particle died."""
-    n = xy.shape[0]
+def _sir_draws(cfg: ParticleConfig, n: int, ctx: _StepCtx, g):
+    """Each particle's step length and heading (the SIR motion model)."""
     hs = ctx.heading_sigma
     sig_h = cfg.heading_sigma_rad if math.isnan(hs) else math.hypot(hs, cfg.heading_sigma_rad)
     length = ctx.length + cfg.step_sigma_m * g.standard_normal(n)
     head = ctx.heading + sig_h * g.standard_normal(n)
+    return length, head
+
+
+def _sir_step(world: _World, cfg: ParticleConfig, xy, w, ctx: _StepCtx, g):
+    """Propagate, eliminate wall crossings, weight; None when every particle died.
+    Compiled (``_particle_kernels.sir_move``, :func:`_sir_likelihood`); the numbers of
+    :func:`_sir_step_reference` bit for bit."""
+    length, head = _sir_draws(cfg, xy.shape[0], ctx, g)
+    bounds = world.bounds if world.use_plan else None
+    new, w, any_inside = world.K.sir_move(xy, w, length, head, bounds=bounds, grid=world.grid)
+    if not any_inside:
+        return None
+    w = w * _sir_likelihood(world, cfg, xy, new, ctx)
+    live = w > 0.0
+    if not np.any(live):
+        return None
+    return new[live], w[live]
+
+
+def _sir_step_reference(world: _World, cfg: ParticleConfig, xy, w, ctx: _StepCtx, g):
+    """numpy reference of :func:`_sir_step`."""
+    length, head = _sir_draws(cfg, xy.shape[0], ctx, g)
     new = xy + np.column_stack([length * np.cos(head), length * np.sin(head)])
     w = w.copy()
     if world.use_plan:
@@ -989,7 +1032,7 @@ def _sir_step(world: _World, cfg: ParticleConfig, xy, w, ctx: _StepCtx, g):
             return None
         alive[alive] = ~world.crosses(xy[alive], new[alive])
         w[~alive] = 0.0
-    w = w * _sir_likelihood(world, cfg, xy, new, ctx)
+    w = w * _sir_likelihood_reference(world, cfg, xy, new, ctx)
     live = w > 0.0
     if not np.any(live):
         return None
@@ -998,16 +1041,30 @@ def _sir_step(world: _World, cfg: ParticleConfig, xy, w, ctx: _StepCtx, g):
 
 def _kld_bound(k: np.ndarray, eps: float, delta: float) -> np.ndarray:
     """Fox 2003 sample-size bound for k occupied bins (Wilson-Hilferty chi-square)."""
-    from scipy.stats import norm
+    from scipy.special import ndtri  # the normal quantile (what scipy.stats.norm.ppf calls)
 
-    z = norm.ppf(1.0 - delta)
+    z = ndtri(1.0 - delta)
     km1 = np.maximum(k - 1, 1).astype(np.float64)
     a = 2.0 / (9.0 * km1)
     return km1 / (2.0 * eps) * (1.0 - a + np.sqrt(a) * z) ** 3
 
 
 def _sir_resample(world: _World, cfg: ParticleConfig, xy, w, g):
-    """Systematic resampling, roughening and (optionally) KLD-sampling."""
+    """Systematic resampling, roughening (compiled: ``_particle_kernels.sir_resample``)
+    and, optionally, KLD-sampling; the same numbers as :func:`_sir_resample_reference`."""
+    n_target = cfg.n_particles
+    ess = 1.0 / np.sum(w * w)
+    if not cfg.kld and ess >= cfg.resample_ess * xy.shape[0] and xy.shape[0] == n_target:
+        return xy, w
+    new = world.K.sir_resample(
+        xy, w, n_target, g, roughening=cfg.roughening,
+        bounds=world.bounds if world.use_plan else None, grid=world.grid,
+    )  # fmt: skip
+    return _kld(cfg, new, g)
+
+
+def _sir_resample_reference(world: _World, cfg: ParticleConfig, xy, w, g):
+    """numpy reference of :func:`_sir_resample` (equal bit for bit, tested)."""
     n_target = cfg.n_particles
     ess = 1.0 / np.sum(w * w)
     if not cfg.kld and ess >= cfg.resample_ess * xy.shape[0] and xy.shape[0] == n_target:
@@ -1025,6 +1082,12 @@ def _sir_resample(world: _World, cfg: ParticleConfig, xy, w, g):
             bad[ok] = world.crosses(new[ok], moved[ok])
             moved[bad] = new[bad]
         new = moved
+    return _kld(cfg, new, g)
+
+
+def _kld(cfg: ParticleConfig, new: np.ndarray, g):
+    """KLD-sampling of the resampled cloud's size (Fox 2003), when ``cfg.kld``."""
+    n_target = cfg.n_particles
     if cfg.kld:
         new = new[g.permutation(new.shape[0])]
         b = np.floor(new / cfg.kld_bin_m).astype(np.int64)
