@@ -253,8 +253,9 @@ def _details(options, sessions, output) -> None:
 
     from rangekit.batch import meta_path
 
-    d = options.beepbeep.get("detector") or "changepoint"
-    given = "probe (--template)" if "probe" in options.beepbeep else f"detector {d}"
+    two_way = options.beepbeep
+    d = two_way.detector or "changepoint"
+    given = "probe (--template)" if two_way.probe is not None else f"detector {d}"
     by_sidecar = sum(bool(s.scheme or s.params) for s in sessions)
     detail(
         f"batch: scheme {options.scheme}, {given}; {by_sidecar} of {len(sessions)} sessions "

@@ -150,6 +150,29 @@ def _sessions(archive):
     return [s for s in find_sessions([archive]) if "lone" not in s.name]
 
 
+def test_options_are_typed_checked_and_picklable():
+    """BatchOptions' two-way part is a TwoWayOptions (a dict of its fields converts, an
+    unknown key is an error naming it); the options travel to worker processes."""
+    import pickle
+
+    from rangekit.batch import TwoWayOptions
+    from rangekit.signals import Beep
+
+    o = BatchOptions(beepbeep={"self_distance_m": [0.1, 0.12], "beep": Beep(f_hz=17000.0)})
+    assert isinstance(o.beepbeep, TwoWayOptions) and o.beepbeep.self_distance_m == (0.1, 0.12)
+    assert o.beepbeep.kwargs() == {"beep": Beep(f_hz=17000.0), "self_distance_m": [0.1, 0.12]}
+    assert pickle.loads(pickle.dumps(o)) == o
+    assert o == BatchOptions(
+        beepbeep=TwoWayOptions(beep=Beep(f_hz=17000.0), self_distance_m=(0.1, 0.12))
+    )
+    with pytest.raises(InvalidParameterError, match="'selfdistance'"):
+        BatchOptions(beepbeep={"selfdistance": 0.1})
+    with pytest.raises(InvalidParameterError, match="scheme='x'"):
+        BatchOptions(scheme="x")
+    opts = json.loads(o.fingerprint())["beepbeep"]
+    assert opts["beep"]["f_hz"] == 17000.0 and opts["temp_c"] is None  # JSON, library default
+
+
 @pytest.mark.parametrize("suffix", [".csv", ".jsonl"])
 def test_parallel_equals_serial_and_summary(archive, tmp_path, suffix):
     sessions = _sessions(archive)

@@ -61,7 +61,7 @@ from rangekit.batch._dask import (
     _dask_watch,
     check_scheduler_address,
 )
-from rangekit.batch._options import SCHEMES, BatchOptions, json_value
+from rangekit.batch._options import SCHEMES, BatchOptions, TwoWayOptions, json_value
 from rangekit.batch._pairing import pair_sessions_by_name
 from rangekit.batch._ranging import run_session
 from rangekit.batch._results import (
@@ -89,6 +89,7 @@ __all__ = [
     "BatchSummary",
     "ResultsFile",
     "Session",
+    "TwoWayOptions",
     "check_scheduler_address",
     "find_sessions",
     "iter_rows",

@@ -6,37 +6,96 @@ from __future__ import annotations
 
 import json
 import os
-from dataclasses import dataclass, field
-from typing import Any
+from collections.abc import Mapping
+from dataclasses import dataclass, field, fields
+from typing import TYPE_CHECKING, Any
 
 from rangekit.errors import InvalidParameterError
+
+if TYPE_CHECKING:
+    from rangekit.ranging.calibration import Calibration
+    from rangekit.signals import Beep, Probe
 
 #: Schemes a session can be ranged with.
 SCHEMES = ("beepbeep", "oneway", "echo")
 
 
 @dataclass(frozen=True)
+class TwoWayOptions:
+    """The two-way (BeepBeep) ranging options of a batch: the keyword arguments of
+    :func:`rangekit.ranging.range_files` (and :func:`~rangekit.ranging.pipeline.range_channels`
+    through it), typed. ``None`` leaves the library's default (a session's sidecar value,
+    where it has one, replaces ``beep``, ``temp_c`` and ``self_distance_m``).
+
+    >>> TwoWayOptions(temp_c=25.0, detector="xcorr").kwargs()
+    {'detector': 'xcorr', 'temp_c': 25.0}
+    >>> TwoWayOptions.from_dict({"temp": 25.0})
+    Traceback (most recent call last):
+    ...
+    rangekit.errors.InvalidParameterError: unknown two-way batch option 'temp' (known: beep, ...)
+    """
+
+    beep: Beep | None = None
+    detector: str | None = None
+    temp_c: float | None = None
+    speed_m_s: float | None = None
+    self_distance_m: float | tuple[float, ...] | None = None
+    clock_ppm: float | None = None
+    probe: Probe | None = None
+    calibration: Calibration | None = None
+
+    def __post_init__(self) -> None:
+        sd = self.self_distance_m
+        if isinstance(sd, list):
+            object.__setattr__(self, "self_distance_m", tuple(sd))
+
+    @classmethod
+    def from_dict(cls, values: Mapping[str, Any]) -> TwoWayOptions:
+        """From keyword arguments of ``range_files``; an unknown key is an error naming it."""
+        known = [f.name for f in fields(cls)]
+        for k in values:
+            if k not in known:
+                raise InvalidParameterError(
+                    f"unknown two-way batch option {k!r} (known: {', '.join(known)})"
+                )
+        return cls(**values)
+
+    def kwargs(self) -> dict[str, Any]:
+        """The options that are set, as keyword arguments of ``range_files``."""
+        out = {f.name: getattr(self, f.name) for f in fields(self)}
+        return {
+            k: (list(v) if isinstance(v, tuple) else v) for k, v in out.items() if v is not None
+        }
+
+
+@dataclass(frozen=True)
 class BatchOptions:
     """How sessions without a sidecar value are ranged.
 
-    ``scheme`` is the default scheme; ``beepbeep`` holds the keyword arguments of
-    :func:`rangekit.ranging.range_files` (``beep``, ``detector``, ``temp_c``,
-    ``speed_m_s``, ``self_distance_m``, ``clock_ppm``); ``oneway`` and ``echo`` those of
-    :func:`rangekit.ranging.ultrasonic.range_ultrasonic_files` except ``scheme``, for the
-    sessions of each scheme. ``pair_by_name`` changes no ranging: set it when the sessions
-    come from :func:`pair_sessions_by_name`, so that the results file records it and a
-    resume with sessions grouped by rules 1-3 (other names, which would mix) is refused.
+    ``scheme`` is the default scheme; ``beepbeep`` the two-way options
+    (:class:`TwoWayOptions`, or a dict of its fields); ``oneway`` and ``echo`` the keyword
+    arguments of :func:`rangekit.ranging.ultrasonic.range_ultrasonic_files` except
+    ``scheme`` for the sessions of each scheme (a mapping: those arguments differ per
+    scheme and ``None`` is a value there, ``tx=None`` being no transducer model, so they
+    wait for the ultrasonic configuration objects of issue 19). ``pair_by_name`` changes
+    no ranging: set it when the sessions come from :func:`pair_sessions_by_name`, so that
+    the results file records it and a resume with sessions grouped by rules 1-3 (other
+    names, which would mix) is refused.
     """
 
     scheme: str = "beepbeep"
-    beepbeep: dict[str, Any] = field(default_factory=dict)
-    oneway: dict[str, Any] = field(default_factory=dict)
-    echo: dict[str, Any] = field(default_factory=dict)
+    beepbeep: TwoWayOptions = field(default_factory=TwoWayOptions)
+    oneway: Mapping[str, Any] = field(default_factory=dict)
+    echo: Mapping[str, Any] = field(default_factory=dict)
     pair_by_name: bool = False
 
     def __post_init__(self) -> None:
         if self.scheme not in SCHEMES:
             raise InvalidParameterError(f"scheme={self.scheme!r} must be one of {SCHEMES}")
+        if not isinstance(self.beepbeep, TwoWayOptions):
+            object.__setattr__(self, "beepbeep", TwoWayOptions.from_dict(self.beepbeep))
+        for name in ("oneway", "echo"):  # copies: the caller's dicts may change later
+            object.__setattr__(self, name, dict(getattr(self, name)))
 
     def fingerprint(self) -> str:
         """A stable JSON text of every option that changes results (checked on resume):
@@ -70,7 +129,7 @@ def json_value(v: Any) -> Any:
         return v
     if isinstance(v, float):
         return v if math.isfinite(v) else repr(v)
-    if isinstance(v, dict):
+    if isinstance(v, Mapping):
         return {str(k): json_value(x) for k, x in sorted(v.items())}
     if isinstance(v, (list, tuple)):
         return [json_value(x) for x in v]

@@ -26,7 +26,7 @@ def _beepbeep_rows(session: Session, opts: BatchOptions) -> list[dict[str, Any]]
     from rangekit.ranging import range_files
     from rangekit.signals import Beep
 
-    kw = dict(opts.beepbeep)
+    kw = opts.beepbeep.kwargs()
     p = session.params
     if "beep" in p:
         keys = ("f_hz", "n_bursts", "spacing", "burst_len", "taper", "amplitude", "fs")
