@@ -194,3 +194,17 @@ def test_series_with_known_rates_counts_devices_from_the_pairs(n_devices):
         correct_series_clock([failed], speed_m_s=C, ppm=[7.0] * (n_devices + 1))
     empty, r = correct_series_clock([], speed_m_s=C, ppm=[1.0, 2.0])
     assert empty == [] and r.ppm.tolist() == [1.0, 2.0]
+
+
+def test_rejection_may_leave_exactly_three_exchanges():
+    """Outliers are dropped as long as MIN_EXCHANGES (3) remain: 5 exchanges, 2 off."""
+    rates = estimate_clock_rates(_exchanges(n=5, noise_s=[2e-4, -3e-4]))
+    assert (rates.n_rejected, rates.n_exchanges) == (2, 3)
+    assert rates.ppm[1] == pytest.approx(40.0, abs=1e-6)
+
+
+def test_exchanges_with_other_device_counts_are_refused():
+    ex = _exchanges(n=4)
+    three = ExchangeRanges(9, 7.0, (), arrivals=(*ex[0].arrivals, ex[0].arrivals[0]))
+    with pytest.raises(IncompatibleInputError, match="exchange 9 has 3 recordings where the ot"):
+        estimate_clock_rates([*ex, three])
