@@ -77,40 +77,40 @@ def beep_options(f):
             "f_hz",
             type=FiniteRange(1.0, 1e7),
             default=None,
-            help="Beep frequency in Hz [16000].",
+            help="Beep frequency in Hz [default: 16000].",
         ),
         click.option(
             "--bursts",
             "n_bursts",
             type=click.IntRange(1, 64),
             default=None,
-            help="Bursts per beep, at most 64 (the detectors' work grows with it) [4].",
+            help="Bursts per beep, at most 64 (the detectors' work grows with it) [default: 4].",
         ),
         click.option(
             "--spacing",
             type=click.IntRange(1, 10**7),
             default=None,
-            help="Samples between burst starts; the whole beep lasts at most 10 s [5000].",
+            help="Samples between burst starts; the whole beep lasts at most 10 s [default: 5000].",
         ),
         click.option(
             "--burst-len",
             "burst_len",
             type=click.IntRange(8, 10**7),
             default=None,
-            help="Samples per burst [441].",
+            help="Samples per burst [default: 441].",
         ),
         click.option(
             "--taper",
             type=click.IntRange(0, 10**7),
             default=None,
-            help="Raised-cosine taper samples at each end [22].",
+            help="Raised-cosine taper samples at each end [default: 22].",
         ),
         click.option(
             "--beep-fs",
             "beep_fs",
             type=FiniteRange(1000.0, 1e7),
             default=None,
-            help="Sample rate the beep is defined at, Hz [44100].",
+            help="Sample rate the beep is defined at, Hz [default: 44100].",
         ),
     ]
     for o in reversed(opts):
@@ -177,7 +177,8 @@ def ultrasonic_options(f):
             type=FiniteRange(0.0, 10.0),
             default=None,
             metavar="S",
-            help="oneway: system latency from the trigger to the drive, s, subtracted [0].",
+            help="oneway: system latency from the trigger to the drive, s, subtracted "
+            "[default: 0].",
         ),
         click.option(
             "--period",
@@ -185,20 +186,20 @@ def ultrasonic_options(f):
             default=None,
             metavar="S",
             help="oneway/echo: the file holds consecutive windows of this length, s "
-            "(0.2 for 5 Hz beacons, 0.07 for SRF02 cycles) [one window].",
+            "(0.2 for 5 Hz beacons, 0.07 for SRF02 cycles) [default: one window].",
         ),
         click.option(
             "--tx-order",
             "tx_order",
             default=None,
             metavar="ID[,ID...]",
-            help="oneway: transmitter id of each window, repeating [none].",
+            help="oneway: transmitter id of each window, repeating [default: none].",
         ),
         click.option(
             "--channels",
             type=click.IntRange(1, 1024),
             default=None,
-            help="Channel count every file must have [oneway: 3 receivers; echo: any].",
+            help="Channel count every file must have [default: oneway: 3 receivers; echo: any].",
         ),
         click.option(
             "--min-range",
@@ -206,7 +207,8 @@ def ultrasonic_options(f):
             type=FiniteRange(0.0, 1000.0),
             default=None,
             metavar="M",
-            help="Shortest distance searched, m [oneway 0; echo 0.15, the SRF02 ring-down].",
+            help="Shortest distance searched, m [default: oneway 0; echo 0.15, the SRF02 "
+            "ring-down].",
         ),
         click.option(
             "--max-range",
@@ -214,7 +216,7 @@ def ultrasonic_options(f):
             type=FiniteRange(0.01, 1000.0),
             default=None,
             metavar="M",
-            help="Longest distance searched, m [oneway 15; echo 6, the SRF02's].",
+            help="Longest distance searched, m [default: oneway 15; echo 6, the SRF02's].",
         ),
         transducer_q_options(
             QOrAuto(),
@@ -223,24 +225,27 @@ def ultrasonic_options(f):
             "timed by fitting the burst through resonators of unknown Q and f0 (with "
             "overlapping reflections), the estimates pooled per receiver and transmitter; Q = "
             "known, folded into the template; 0 = the bare drive (the transducers' delay "
-            "stays in the ranges) [auto]. echo: the template's Q (auto = 4).",
+            "stays in the ranges) [default: auto]. echo: the template's Q (auto = 4).",
         ),
         click.option(
             "--code",
             default=None,
             metavar="N|+-...",
             help="Emitted code: a Barker length (2,3,4,5,7,11,13) or chips as + and - "
-            "[oneway: 7; echo: + (the SRF02 ping)].",
+            "[default: oneway: 7; echo: + (the SRF02 ping)].",
         ),
         click.option(
-            "--carrier", type=FiniteRange(1.0, 1e7), default=None, help="Carrier, Hz [40000]."
+            "--carrier",
+            type=FiniteRange(1.0, 1e7),
+            default=None,
+            help="Carrier, Hz [default: 40000].",
         ),
         click.option(
             "--cycles-per-bit",
             "cycles_per_bit",
             type=click.IntRange(1, 1000),
             default=None,
-            help="Carrier cycles per chip [oneway: 3; echo: 8].",
+            help="Carrier cycles per chip [default: oneway: 3; echo: 8].",
         ),
     ]
     for o in reversed(opts):
@@ -433,6 +438,17 @@ def progress(total: float, label: str, *, unit: str = ""):
     tty = bool(getattr(sys.stderr, "isatty", lambda: False)())
     on = not is_quiet() and (tty or is_verbose())
     return Progress(total, label, unit=unit, tty=tty, interval_s=None if on else math.inf)
+
+
+def heartbeat(label: str):
+    """A :class:`~rangekit_cli._progress.Heartbeat` (elapsed time of a job that cannot
+    count its progress) on a terminal's stderr; off with ``--quiet`` or off a terminal."""
+    import sys
+
+    from rangekit_cli._progress import Heartbeat
+
+    tty = bool(getattr(sys.stderr, "isatty", lambda: False)())
+    return Heartbeat(label, tty=tty and not is_quiet())
 
 
 def input_paths(ctx: click.Context, kw: dict) -> list[str]:

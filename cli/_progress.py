@@ -14,11 +14,12 @@ from __future__ import annotations
 
 import math
 import sys
+import threading
 import time
 from collections.abc import Callable
 from typing import TextIO
 
-__all__ = ["Progress"]
+__all__ = ["Heartbeat", "Progress"]
 
 
 def _num(v: float) -> str:
@@ -152,4 +153,80 @@ class Progress:
             self._write(self.text(self._clock(), final=True))
             if self.tty:
                 self.stream.write("\n")
+                self.stream.flush()
+
+
+class Heartbeat:
+    """A line that says a job of unknown progress is still running, with its elapsed time.
+
+    For jobs that cannot report their progress (an experiment's ``run`` gives no count
+    back): on a terminal a background thread rewrites ``label: running, 0:42`` in place
+    every ``interval_s``; elsewhere nothing is written. :meth:`close` (or leaving the
+    ``with`` block) stops the thread and clears the line.
+
+    Examples
+    --------
+    >>> import io
+    >>> out = io.StringIO()
+    >>> with Heartbeat("kim2013: 3 trials", stream=out, tty=False):
+    ...     pass
+    >>> out.getvalue()
+    ''
+    """
+
+    def __init__(
+        self,
+        label: str,
+        *,
+        stream: TextIO | None = None,
+        tty: bool | None = None,
+        interval_s: float = 1.0,
+        clock: Callable[[], float] = time.monotonic,
+    ) -> None:
+        self.label = label
+        self._stream = stream
+        self.tty = bool(getattr(self.stream, "isatty", lambda: False)()) if tty is None else tty
+        self.interval_s = interval_s
+        self._clock = clock
+        self._t0 = clock()
+        self._stop = threading.Event()
+        self._width = 0
+        self._thread = None
+        if self.tty:
+            self._thread = threading.Thread(target=self._run, daemon=True)
+            self._thread.start()
+
+    @property
+    def stream(self) -> TextIO:
+        return sys.stderr if self._stream is None else self._stream
+
+    def text(self, now: float) -> str:
+        """The line at wall time ``now``."""
+        return f"{self.label}: running, {_hms(max(0.0, now - self._t0))}"
+
+    def _write(self, line: str) -> None:
+        pad = " " * max(0, self._width - len(line))
+        self.stream.write("\r" + line + pad)
+        self.stream.flush()
+        self._width = len(line)
+
+    def _run(self) -> None:
+        while not self._stop.wait(self.interval_s):
+            self._write(self.text(self._clock()))
+
+    def __enter__(self) -> Heartbeat:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    def close(self) -> None:
+        """Stop the thread; clear the line if one was written."""
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join()
+            self._thread = None
+            if self._width:
+                self._write("")
+                self.stream.write("\r")
                 self.stream.flush()

@@ -9,7 +9,9 @@ from rangekit_cli._options import (
     debug_option,
     detail,
     detector_option,
+    format_option,
     make_beep,
+    progress,
     refuse_beep_options,
     speed_of_sound_option,
     temperature_option,
@@ -65,7 +67,7 @@ def parse_recording(text: str, default_m: float | None) -> tuple[list[str], floa
     "--fit-speed/--no-fit-speed",
     "fit_speed",
     default=None,
-    help="Fit the effective speed of sound too [when the recordings are at two or more "
+    help="Fit the effective speed of sound too [default: when the recordings are at two or more "
     "distinct distances].",
 )
 @click.option(
@@ -89,6 +91,7 @@ def parse_recording(text: str, default_m: float | None) -> tuple[list[str], floa
     metavar="CAL.json",
     help="Where to write the calibration (JSON; written only when the fit is accepted).",
 )
+@format_option
 @verbosity_options
 @debug_option
 def calibrate_cmd(
@@ -102,16 +105,17 @@ def calibrate_cmd(
     speed,
     detector,
     output,
+    fmt,
     **kw,
 ):
     """Fit a device pair's (or link's) offset, and speed of sound, from known distances.
 
-    Model d = c tau + b (docs/calibration.md): tau is what the scheme measures (two-way:
-    half the difference of the two devices' intervals; one-way: the arrival time from the
-    trigger) and b the offset (two-way: the mean speaker-to-microphone distance, any
-    latency cancels; one-way: -c x the system latency). Recordings at ONE distance fit b
-    with c from --temperature; at two or more distances c is fitted too. Too few
-    recordings (fewer than 3, or 4 for the speed), or recordings that disagree with the
+    Model d = c tau + b (calibration.md of the documentation): tau is what the scheme
+    measures (two-way: half the difference of the two devices' intervals; one-way: the
+    arrival time from the trigger) and b the offset (two-way: the mean speaker-to-microphone
+    distance, any latency cancels; one-way: -c x the system latency). Recordings at ONE
+    distance fit b with c from --temperature; at two or more distances c is fitted too. Too
+    few recordings (fewer than 3, or 4 for the speed), or recordings that disagree with the
     others beyond their uncertainty, are refused (exit 7) and named.
 
     RECORDING is FILE, or dev0.wav+dev1.wav (two-way with one mono file per device), with
@@ -126,6 +130,7 @@ def calibrate_cmd(
     """
     from rangekit_cli._options import load_template
 
+    from rangekit.io.results import format_calibration
     from rangekit.physics import speed_of_sound_m_s
     from rangekit.ranging.calibration import fit_calibration, measure_recordings
 
@@ -140,10 +145,7 @@ def calibrate_cmd(
         _refuse_ultrasonic_options(kw)
         if probe is not None:
             refuse_beep_options(kw)
-        beep = make_beep(kw)
-        meas = measure_recordings(
-            recs, scheme=scheme, probe=probe, beep=beep, detector=detector, speed_m_s=c
-        )
+        args = {"beep": make_beep(kw), "detector": detector}
     else:
         if kw.get("latency") is not None:
             raise click.UsageError("--latency is what a one-way calibration fits; leave it out")
@@ -153,7 +155,11 @@ def calibrate_cmd(
         args.pop("latency_s", None)
         args.pop("temp_c", None)
         args.pop("speed_m_s", None)
-        meas = measure_recordings(recs, scheme=scheme, probe=probe, speed_m_s=c, **args)
+    meas = []
+    with progress(len(recs), "calibrate", unit="files") as bar:
+        for rec in recs:  # one at a time, for the progress line; the same measurements
+            meas += measure_recordings([rec], scheme=scheme, probe=probe, speed_m_s=c, **args)
+            bar.update(1)
     cal = fit_calibration(
         meas,
         scheme=scheme,
@@ -163,22 +169,4 @@ def calibrate_cmd(
         probe=None if probe is None else probe.name,
     )
     cal.write(output)
-    click.echo(summary(cal))
-
-
-def summary(cal) -> str:
-    """Human summary of a calibration (what ``calibrate`` prints)."""
-    dists = ", ".join(f"{d:g}" for d in cal.distances_m)
-    lines = [
-        f"calibration: {cal.scheme}, model {cal.model}, {cal.n_recordings} measurements at "
-        f"{dists} m",
-        f"  offset_m     {cal.offset_m:+.5f} +- {cal.sigma_offset_m:.5f}",
-    ]
-    if cal.scheme == "oneway":
-        lines.append(f"  latency_s    {cal.latency_s:+.7f} +- {cal.sigma_latency_s:.7f}")
-    if cal.model == "offset+speed":
-        lines.append(f"  speed_m_s    {cal.speed_m_s:.2f} +- {cal.sigma_speed_m_s:.2f}")
-    else:
-        lines.append(f"  speed_m_s    {cal.speed_m_s:.2f} (from the temperature; not fitted)")
-    lines.append(f"  rms residual {cal.rms_residual_m * 1e3:.2f} mm")
-    return "\n".join(lines)
+    click.echo(format_calibration(cal, fmt), nl=False)

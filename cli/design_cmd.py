@@ -26,7 +26,7 @@ def design():
     "fs",
     type=FiniteRange(1000.0, 1e7),
     default=None,
-    help="Sample rate of the file, Hz [the beep's, 44100].",
+    help="Sample rate of the file, Hz [default: the beep's, 44100].",
 )
 @click.option(
     "-o", "--output", type=click.Path(dir_okay=False), required=True, help="WAV file to write."
@@ -66,15 +66,17 @@ def design_beep(amplitude, fs, output, **beep_kw):
     "--code",
     default=None,
     metavar="N|+-...",
-    help="A Barker length (2,3,4,5,7,11,13) or chips as + and - [7].",
+    help="A Barker length (2,3,4,5,7,11,13) or chips as + and - [default: 7].",
 )
-@click.option("--carrier", type=FiniteRange(1.0, 1e7), default=None, help="Carrier, Hz [40000].")
+@click.option(
+    "--carrier", type=FiniteRange(1.0, 1e7), default=None, help="Carrier, Hz [default: 40000]."
+)
 @click.option(
     "--cycles-per-bit",
     "cycles_per_bit",
     type=click.IntRange(1, 1000),
     default=None,
-    help="Carrier cycles per chip [3].",
+    help="Carrier cycles per chip [default: 3].",
 )
 @click.option(
     "--amplitude", type=FiniteRange(0.0, 1.0), default=0.9, show_default=True, help="Peak level."
@@ -156,7 +158,7 @@ def design_barker(code, carrier, cycles_per_bit, amplitude, fs, output):
     default=None,
     metavar="S",
     help="Raised-cosine fade at each end, s, at most half of --duration "
-    "[min(0.005, duration / 10)].",
+    "[default: min(0.005, duration / 10)].",
 )
 @click.option(
     "--amplitude",

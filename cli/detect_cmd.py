@@ -44,13 +44,14 @@ _TEMPLATE_OPTIONS = {
     default=None,
     metavar="S",
     help="With --template: shortest time between two emissions in seconds (e.g. the firing "
-    "period); peaks closer to a stronger arrival are its echoes [the probe's duration].",
+    "period); peaks closer to a stronger arrival are its echoes [default: the probe's duration].",
 )
 @click.option(
     "--weighting",
     type=click.Choice(["ml", "prewhiten", "scot", "phat", "none"]),
     default=None,
-    help="With --template: weighting of the matched filter by the recording's noise spectrum [ml].",
+    help="With --template: weighting of the matched filter by the recording's noise "
+    "spectrum [default: ml].",
 )
 @beep_options
 @format_option

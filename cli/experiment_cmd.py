@@ -9,7 +9,8 @@ import click
 from rangekit_cli._options import (
     debug_option,
     emit,
-    format_choice,
+    format_option,
+    heartbeat,
     note,
     output_option,
     verbosity_options,
@@ -33,7 +34,7 @@ EXPERIMENTS: dict[str, str] = {
     default=None,
     metavar="N",
     help="Monte Carlo trials, 1 to 10000 (the run time grows with it; 10000 is hours) "
-    "[the experiment's default, e.g. 20 for ahn2007].",
+    "[default: the experiment's default, e.g. 20 for ahn2007].",
 )
 @click.option(
     "--seed",
@@ -43,7 +44,7 @@ EXPERIMENTS: dict[str, str] = {
     metavar="S",
     help="Random seed (>= 0); the same seed and trials give the same numbers.",
 )
-@format_choice(("table", "json"), "table")
+@format_option
 @click.option(
     "--plots",
     "plots",
@@ -65,7 +66,7 @@ def experiment_cmd(name, trials, seed, fmt, plots, output):
     kim2013 (Kim & Kim 2013: DUHL robot localisation from ceiling ultrasonic beacons,
     Tables II and III).
     Prints a table of metric, condition, paper, measured, unit (or the JSON report,
-    docs/formats.md). A progress note and the wall time go to stderr.
+    formats.md of the documentation). A progress note and the wall time go to stderr.
 
     \b
     Examples:
@@ -75,14 +76,17 @@ def experiment_cmd(name, trials, seed, fmt, plots, output):
       rangekit experiment kim2013 --trials 3 --plots figures/
       rangekit experiment girard2011 --trials 5 --plots figures/
     """
+    from rangekit.io.results import format_report
+
     mod = _load(name)
     n = mod.DEFAULT_TRIALS if trials is None else trials
     plots_dir = None if plots is None else _plots_dir(plots)
     note(f"running {name}: {n} trial{'s' if n != 1 else ''}, seed {seed} ...")
     t0 = time.perf_counter()
-    report = mod.run(trials=n, seed=seed, plots_dir=plots_dir)
+    with heartbeat(f"{name}: {n} trial{'s' if n != 1 else ''}"):
+        report = mod.run(trials=n, seed=seed, plots_dir=plots_dir)
     wall = time.perf_counter() - t0
-    text = report.to_json_text() if fmt == "json" else report.to_table()
+    text = format_report(report, fmt)
     if not text.endswith("\n"):
         text += "\n"
     emit(text, output)

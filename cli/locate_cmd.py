@@ -9,7 +9,7 @@ from rangekit_cli._options import (
     FiniteRange,
     debug_option,
     emit,
-    format_choice,
+    format_option,
     output_option,
     verbosity_options,
     warn,
@@ -30,7 +30,8 @@ DISTANCE_COLUMNS = ("tx", "d1_m", "d2_m", "d3_m")
     type=click.Path(dir_okay=True),
     required=True,
     metavar="FILE",
-    help="Beacon file: the ceiling transmitters' ids and positions (JSON, docs/formats.md).",
+    help="Beacon file: the ceiling transmitters' ids and positions (JSON, formats.md of "
+    "the documentation).",
 )
 @click.option(
     "--distances",
@@ -91,7 +92,7 @@ DISTANCE_COLUMNS = ("tx", "d1_m", "d2_m", "d3_m")
     metavar="M",
     help="Radius of the receiver circle on the robot, m.",
 )
-@format_choice(("table", "json"), "table")
+@format_option
 @output_option
 @verbosity_options
 @debug_option
@@ -198,7 +199,7 @@ def locate_cmd(beacons, ranges, sigma, distances, tx_items, method, d_th, r_r, f
             obj["covariance"] = cov.tolist()
         text = json.dumps(obj, indent=2) + "\n"
     else:
-        text = format_rows([row], fields, "table")
+        text = format_rows([row], fields, fmt)
     emit(text, output)
 
 

@@ -1,11 +1,8 @@
 """The ``rangekit`` command group; maps library errors to exit codes in one place.
 
 Every error is one line on stderr, ``rangekit: error: ...`` (``--debug`` shows the
-traceback of library errors). Exit codes (``docs/cli.md``): 0 success; 1 other rangekit
-error; 2 usage or invalid parameter; 3 input file missing or unreadable, or output not
-writable; 4 not audio; 5 inputs incompatible (sample rate, channel or file count);
-6 detection failure (beeps not found, burst spacing does not fit); 70 internal error
-(a bug); 130 interrupted.
+traceback of library errors). The exit codes are the table
+:data:`rangekit.errors.EXIT_CODES`, which ``rangekit --help`` prints.
 """
 
 from __future__ import annotations
@@ -14,6 +11,8 @@ import sys
 from typing import ClassVar
 
 import click
+
+from rangekit.errors import DOCS_URL, exit_codes_text
 
 EXIT_INTERNAL = 70
 EXIT_INTERRUPTED = 130
@@ -113,7 +112,20 @@ def _version() -> str:
     return __version__
 
 
-@click.group(cls=RangekitGroup, context_settings={"help_option_names": ["-h", "--help"]})
+EPILOG = f"""\b
+Exit codes:
+{exit_codes_text()}
+
+\b
+Documentation: {DOCS_URL}
+"""
+
+
+@click.group(
+    cls=RangekitGroup,
+    context_settings={"help_option_names": ["-h", "--help"]},
+    epilog=EPILOG,
+)
 @click.option("--debug", is_flag=True, help="Show tracebacks of errors.")
 @click.option(
     "--memory-budget",
@@ -121,7 +133,7 @@ def _version() -> str:
     default=None,
     metavar="SIZE|off",
     help="Most memory a whole-file command may plan to use (512M, 4G, off); a recording "
-    "needing more is refused with a hint to --series [half the available memory; "
+    "needing more is refused with a hint to --series [default: half the available memory; "
     "$RANGEKIT_MEMORY_BUDGET].",
 )
 @click.version_option(version=None, package_name="rangekit", prog_name="rangekit")
@@ -137,7 +149,7 @@ def cli(ctx: click.Context, debug: bool, memory_budget: str | None) -> None:
       rangekit synth beepbeep --distance 2 -o x.wav   # a simulated exchange + truth
       rangekit plot spectrogram x.wav -o x.png        # the onsets found, as a picture
 
-    Exit codes are listed in docs/cli.md.
+    Every command: -q/--quiet, -v/--verbose; - for standard input or (-o -) output.
     """
     ctx.meta["rangekit.debug"] = debug
     if memory_budget is not None:

@@ -95,10 +95,10 @@ def _window_option(name: str, dest: str, help: str):
 @detector_option
 @template_option
 @beep_options
-@_window_option("--t0", "t0_s", "Start of the time window to show, s [0].")
-@_window_option("--t1", "t1_s", "End of the time window to show, s [the recording's end].")
-@_window_option("--fmin", "fmin_hz", "Lowest frequency to show, Hz [0].")
-@_window_option("--fmax", "fmax_hz", "Highest frequency to show, Hz [fs/2].")
+@_window_option("--t0", "t0_s", "Start of the time window to show, s [default: 0].")
+@_window_option("--t1", "t1_s", "End of the time window to show, s [default: the recording's end].")
+@_window_option("--fmin", "fmin_hz", "Lowest frequency to show, Hz [default: 0].")
+@_window_option("--fmax", "fmax_hz", "Highest frequency to show, Hz [default: fs/2].")
 @_output
 @verbosity_options
 @debug_option
@@ -319,7 +319,7 @@ def _read_truth(text: str | None):
     type=click.Path(dir_okay=True),
     default=None,
     metavar="PLAN.json",
-    help="Floor plan whose walls are drawn (docs/floorplan.md).",
+    help="Floor plan whose walls are drawn (floorplan.md of the documentation).",
 )
 @click.option(
     "--truth",
@@ -369,7 +369,7 @@ def track_cmd(track, map_path, truth, ellipses, output):
     "--by",
     default=None,
     metavar="COLUMN",
-    help="One curve per value of this column (e.g. scheme) [one curve].",
+    help="One curve per value of this column (e.g. scheme) [default: one curve].",
 )
 @_output
 @verbosity_options

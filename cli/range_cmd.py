@@ -73,7 +73,7 @@ calibration_option = click.option(
     type=FiniteRange(0.001, 1e6),
     default=None,
     metavar="S",
-    help="--series: block length in seconds [2^21 samples over all channels].",
+    help="--series: block length in seconds [default: 2^21 samples over all channels].",
 )
 @click.option(
     "--exchange",
@@ -82,7 +82,7 @@ calibration_option = click.option(
     default=None,
     metavar="S",
     help="--series beepbeep: longest time from device 0's beep to the last device's beep "
-    "of one exchange [(N-1) x (beep duration + 0.5 s)].",
+    "of one exchange [default: (N-1) x (beep duration + 0.5 s)].",
 )
 @click.option(
     "--skew",
@@ -91,7 +91,7 @@ calibration_option = click.option(
     default=None,
     metavar="S",
     help="--series beepbeep: allowance for the time of flight and for differing recording "
-    "start times [0.1].",
+    "start times [default: 0.1].",
 )
 @click.option(
     "--clock-rate",
@@ -101,7 +101,7 @@ calibration_option = click.option(
     help="--series beepbeep: correct the devices' sample-clock rates. estimate: from the "
     "spacing of the exchanges, relative to device 0 (reported on stderr; the rows then come "
     "at the end, after the whole recording); PPM,...: known rates, one per device (device 0 "
-    "first) or one per device after device 0; off: no correction [off].",
+    "first) or one per device after device 0; off: no correction [default: off].",
 )
 @click.option(
     "--no-setup",
@@ -117,7 +117,7 @@ calibration_option = click.option(
     default=None,
     metavar="N",
     help="With --series (beepbeep): N worker processes detect blocks in parallel; the "
-    "rows are those of one job, in order (at most 256) [1].",
+    "rows are those of one job, in order (at most 256) [default: 1].",
 )
 @click.option(
     "--strict",
@@ -443,7 +443,8 @@ def _read_calibration(path, scheme: str):
 
 
 def _range_ultrasonic(files, scheme, temp_c, speed, fmt, output, kw, series_opts, extra, *, strict):
-    from rangekit.ranging.ultrasonic import format_tof, range_ultrasonic_files
+    from rangekit.io.results import format_tof
+    from rangekit.ranging.ultrasonic import range_ultrasonic_files
 
     any_channels = extra["probe"] is not None and kw.get("channels") is None
     args = ultrasonic_kwargs(kw, scheme=scheme, temp_c=temp_c, speed=speed)
@@ -594,29 +595,11 @@ class SeriesSink:
     def _csv(self, rows: list[dict]) -> None:
         from rangekit.io.results import format_rows
 
-        rows = [{k: ("" if v is None else v) for k, v in r.items()} for r in rows]
         text = format_rows(rows, self.fields, "csv")
         if self._header:
             text = text.split("\n", 1)[1]
         self._header = True
         self._buf.append(text)
-
-    def _table(self, rows: list[dict]) -> list[dict]:
-        digits = {"distance_m": 4, "sigma_m": 5, "snr_db": 1, "arrival_s": 7}
-        if self.scheme == "beepbeep":
-            digits = {"distance_m": 6, "sigma_m": 6}
-        out = []
-        for r in rows:
-            t = dict(r)
-            t["t_s"] = f"{r['t_s']:.6f}"
-            for k, nd in digits.items():
-                t[k] = "-" if r[k] is None else f"{r[k]:.{nd}f}"
-            if "flags" in t:
-                t["flags"] = ",".join(r["flags"]) or "-"
-            if "tx" in t and t["tx"] is None:
-                t["tx"] = "-"
-            out.append(t)
-        return out
 
     def run(self, items, meta: dict) -> None:
         """Consume the library's series; write the output; report on stderr."""
@@ -674,7 +657,7 @@ class SeriesSink:
                     if not ok:
                         self._tmp.unlink(missing_ok=True)
         if self.fmt == "table":
-            emit(format_rows(self._table(collected), self.fields, "table"), self.output)
+            emit(format_rows(collected, self.fields, "table"), self.output)
         elif self.fmt == "json":
             emit(format_rows(collected, self.fields, "json", meta=meta, key="ranges"), self.output)
         if n_bad and self.scheme == "beepbeep":

@@ -11,6 +11,7 @@ from rangekit_cli._options import (
     check_outputs,
     debug_option,
     float_list,
+    heartbeat,
     load_template,
     make_beep,
     note,
@@ -48,7 +49,7 @@ impair_option = click.option(
     help="Impair the rendered recording before writing it: KEY=VALUE[,...] with keys dc, "
     "clip_db, lf_db, hum_db, hum_hz, pink_db, interference (speech|music), interference_db, "
     "interference_max_hz, agc_db, agc_steps, silence_s, lp_hz, hp_hz; levels in dB over "
-    "the rendered noise floor (docs/impairments.md).",
+    "the rendered noise floor (impairments.md of the documentation).",
 )
 
 
@@ -134,7 +135,10 @@ def _parse_point(text: str, name: str) -> list[float]:
 )
 @temperature_option
 @click.option(
-    "--ppm", default=None, metavar="E[,E...]", help="Sample-clock error per device, ppm [0]."
+    "--ppm",
+    default=None,
+    metavar="E[,E...]",
+    help="Sample-clock error per device, ppm [default: 0].",
 )
 @click.option(
     "--fs", type=float, default=44100.0, show_default=True, help="Recording sample rate, Hz."
@@ -153,7 +157,7 @@ def _parse_point(text: str, name: str) -> list[float]:
     type=FiniteRange(min=0.0, min_open=True),
     default=None,
     metavar="S",
-    help="With --exchanges: seconds between the starts of consecutive exchanges [3].",
+    help="With --exchanges: seconds between the starts of consecutive exchanges [default: 3].",
 )
 @click.option(
     "--jitter",
@@ -161,7 +165,7 @@ def _parse_point(text: str, name: str) -> list[float]:
     default=None,
     metavar="S",
     help="With --exchanges: each gap between two devices' plays is lengthened by a uniform "
-    "random time in [0, S] seconds [0].",
+    "random time in [0, S] seconds [default: 0].",
 )
 @click.option(
     "--seed",
@@ -273,15 +277,16 @@ def synth_beepbeep(
         from rangekit.sim.exchanges import render_exchanges
 
         source = beep.as_probe()
-        sim = render_exchanges(
-            devices,
-            source=source.samples,
-            source_fs=source.fs,
-            n_exchanges=exchanges,
-            period_s=3.0 if period is None else period,
-            jitter_s=0.0 if jitter is None else jitter,
-            **common,
-        )
+        with heartbeat(f"synth: {exchanges} exchanges"):
+            sim = render_exchanges(
+                devices,
+                source=source.samples,
+                source_fs=source.fs,
+                n_exchanges=exchanges,
+                period_s=3.0 if period is None else period,
+                jitter_s=0.0 if jitter is None else jitter,
+                **common,
+            )
     out = Path(output)
     floors = [
         noise_floor_psd(d["noise_sigma"], fs=fs, kind=noise, n_samples=len(x))
@@ -376,7 +381,7 @@ def _ultrasonic_synth_options(f):
     multiple=True,
     metavar="X,Y",
     help="A ceiling transmitter's position in metres (repeat; fired in this order) "
-    "[six Txs on a 1.5 m grid around the origin].",
+    "[default: six Txs on a 1.5 m grid around the origin].",
 )
 @click.option(
     "--ceiling",
@@ -404,7 +409,7 @@ def _ultrasonic_synth_options(f):
     "n_windows",
     type=click.IntRange(1, 100000),
     default=None,
-    help="Activation windows to render [one per Tx].",
+    help="Activation windows to render [default: one per Tx].",
 )
 @click.option(
     "--period",
@@ -558,7 +563,7 @@ def synth_oneway(
     "map_path",
     type=click.Path(dir_okay=False),
     required=True,
-    help="Floor plan JSON (docs/floorplan.md).",
+    help="Floor plan JSON (floorplan.md of the documentation).",
 )
 @click.option(
     "--pose",

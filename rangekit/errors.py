@@ -1,7 +1,8 @@
 """The rangekit exception family.
 
 Every error a user can cause derives from :class:`RangekitError` and carries the
-exit code the command-line interface returns for it (documented in ``docs/cli.md``).
+exit code the command-line interface returns for it. :data:`EXIT_CODES` is the one table
+of those codes: ``rangekit --help`` prints it and ``docs/cli.md`` is tested against it.
 Library callers catch :class:`RangekitError`; they never need to look at exit codes.
 
 Examples
@@ -10,11 +11,15 @@ Examples
 >>> err = InputFileError("cannot open 'x.wav': no such file")
 >>> err.exit_code
 3
+>>> EXIT_CODES[3]
+'input file missing or unreadable, or output not writable'
 """
 
 from __future__ import annotations
 
 __all__ = [
+    "DOCS_URL",
+    "EXIT_CODES",
     "AudioFormatError",
     "CalibrationError",
     "DetectionError",
@@ -24,7 +29,36 @@ __all__ = [
     "LogFormatError",
     "RangekitError",
     "UnreliableResultError",
+    "exit_codes_text",
 ]
+
+
+#: Where the documentation lives (``[project.urls] Documentation`` in pyproject.toml;
+#: a test keeps the two equal). ``rangekit --help`` points there; help texts name its
+#: pages (``formats.md of the documentation``).
+DOCS_URL = "https://github.com/rangekit/rangekit/tree/main/docs"
+
+#: Exit code -> what it means: the one table (``rangekit --help``, ``docs/cli.md``).
+EXIT_CODES: dict[int, str] = {
+    0: "success",
+    1: "another rangekit error",
+    2: "usage error or invalid parameter",
+    3: "input file missing or unreadable, or output not writable",
+    4: "not audio, no samples, or a malformed data file",
+    5: "inputs incompatible (sample rate, channels, file count, memory budget)",
+    6: "detection failure",
+    7: "calibration refused (calibrate)",
+    8: "some sessions failed (batch)",
+    9: "every session failed (batch)",
+    10: "a doubtful result refused (--strict)",
+    70: "internal error (a bug: please report it)",
+    130: "interrupted",
+}
+
+
+def exit_codes_text() -> str:
+    """:data:`EXIT_CODES` as aligned lines ``  CODE  meaning`` (for ``--help``)."""
+    return "\n".join(f"  {code:>3}  {text}" for code, text in EXIT_CODES.items())
 
 
 class RangekitError(Exception):

@@ -121,6 +121,30 @@ def test_two_distances_fit_the_speed(scene):
     assert cal["sigma_speed_m_s"] > 0
 
 
+def test_formats_and_digits(scene):
+    """--format json prints the file's object, csv one row that loads, table the fitted
+    values to their sigma (two significant digits of it)."""
+    import csv
+    import io
+
+    from rangekit.io.results import format_pm
+
+    tmp, sweep, truth = scene
+    names = ["a1", "a2", "b1", "b2"]
+    js = ok(_cal(tmp, sweep, names, truth, "--format", "json", "-q", out="fj.json"))
+    assert json.loads(js.stdout) == json.loads((tmp / "fj.json").read_text())
+    assert js.stderr == ""
+    cal = json.loads(js.stdout)
+    row = next(csv.DictReader(io.StringIO(ok(_cal(tmp, sweep, names, truth, "--format",
+                                                  "csv", out="fc.json")).stdout)))  # fmt: skip
+    assert float(row["offset_m"]) == pytest.approx(cal["offset_m"], abs=1e-6)
+    assert row["latency_s"] == "" and row["model"] == "offset+speed"
+    table = ok(_cal(tmp, sweep, names, truth, out="ft.json")).stdout
+    pm = format_pm(cal["speed_m_s"], cal["sigma_speed_m_s"])
+    assert f"speed_m_s    {pm}" in table
+    assert f"offset_m     {format_pm(cal['offset_m'], cal['sigma_offset_m'], sign=True)}" in table
+
+
 def test_too_few_recordings_refused(scene):
     tmp, sweep, truth = scene
     r = _cal(tmp, sweep, ["a1", "a2"], truth)

@@ -79,7 +79,7 @@ def test_unknown_experiment():
         (["--trials", "-3"], "--trials"),
         (["--trials", "two"], "--trials"),
         (["--seed", "-1"], "--seed"),
-        (["--format", "csv"], "--format"),
+        (["--format", "xml"], "--format"),
     ],
 )
 def test_bad_options(extra, named):

@@ -176,6 +176,6 @@ def test_relative_level_of_a_noiseless_render_is_refused(tmp_path):
 def test_help_lists_every_key(cmd):
     r = ok(run(["synth", cmd, "--help"]))
     text = " ".join(r.stdout.split())
-    assert "--impair SPEC" in text and "docs/impairments.md" in text
+    assert "--impair SPEC" in text and "impairments.md of the documentation" in text
     for key in KEYS:
         assert key in text, key

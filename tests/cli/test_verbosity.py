@@ -76,3 +76,22 @@ def test_verbose_says_when_no_setup_is_found(tmp_path):
 
 def test_quiet_keeps_errors(tmp_path):
     assert_error(run(["range", tmp_path / "missing.wav", "-q"]), 3, "missing.wav")
+
+
+def test_progress_is_off_when_quiet_or_off_a_terminal(monkeypatch):
+    import io
+    import math
+
+    import click
+    from rangekit_cli._options import VERBOSITY_KEY, progress
+
+    class Tty(io.StringIO):
+        def isatty(self):
+            return True
+
+    for level, tty, on in ((0, False, False), (1, False, True), (0, True, True), (-1, True, False)):
+        monkeypatch.setattr("sys.stderr", Tty() if tty else io.StringIO())
+        with click.Context(click.Command("x")) as ctx:
+            ctx.meta[VERBOSITY_KEY] = level
+            bar = progress(10, "x", unit="files")
+        assert math.isfinite(bar.interval_s) == on, (level, tty)
