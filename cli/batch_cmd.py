@@ -243,7 +243,7 @@ def batch_cmd(
         )
     if summary.failed:
         if not quiet:
-            detail(f"batch: first failed session: {_first_failure(output)}")
+            detail(f"batch: first failed session: {summary.first_error}")
         click.get_current_context().exit(EXIT_ALL_FAILED if summary.ok == 0 else EXIT_SOME_FAILED)
 
 
@@ -264,16 +264,6 @@ def _details(options, sessions, output) -> None:
     if options.pair_by_name:
         detail("batch: sessions paired by name across the device folders")
     detail(f"batch: options recorded in {meta_path(output)}")
-
-
-def _first_failure(output) -> str:
-    """``SESSION: ERROR`` of the first error row of the results file."""
-    from rangekit.batch import iter_rows
-
-    for r in iter_rows(output):
-        if r["status"] == "error":
-            return f"{r['session']}: {r['error']}"
-    return "-"
 
 
 def _probe_and_calibration(template, calibration, scheme, sd, kw, beepbeep, ultra) -> None:

@@ -191,7 +191,8 @@ def test_parallel_equals_serial_and_summary(archive, tmp_path, suffix):
         n_bad,
         0,
     )
-    assert (two.ok, two.failed) == (one.ok, one.failed)
+    assert (two.ok, two.failed, two.first_error) == (one.ok, one.failed, one.first_error)
+    assert one.first_error.split(": ", 1)[0] == min(s.name for s in sessions if "gap" in s.name)
     rows = list(iter_rows(tmp_path / f"one{suffix}"))
     assert [r["session"] for r in rows] == sorted(r["session"] for r in rows)
     assert len(rows) == len(sessions) + 2  # the trio has 3 rows
@@ -283,7 +284,7 @@ def test_torn_tail_is_cut_and_redone(archive, tmp_path, suffix, monkeypatch):
 
     monkeypatch.setattr(batch_run, "run_session", ranged_once)
     full = tmp_path / f"full{suffix}"
-    run_batch(sessions, full)
+    first_error = run_batch(sessions, full).first_error
     lines = full.read_text().splitlines(keepends=True)
     n_head = 1 if suffix == ".csv" else 0
     trio_at = next(i for i, ln in enumerate(lines) if "trio" in ln)
@@ -301,6 +302,10 @@ def test_torn_tail_is_cut_and_redone(archive, tmp_path, suffix, monkeypatch):
         s = run_batch(sessions, part, resume=True)
         assert part.read_bytes() == full.read_bytes()
         assert s.skipped < len(sessions)
+        assert s.first_error == first_error  # read back from the file for skipped sessions
+    s = run_batch(sessions, part, resume=True)  # every session from the file
+    assert (s.skipped, s.first_error) == (len(sessions), first_error)
+    assert "junk.wav" in s.first_error or "gap_dev" in s.first_error
 
 
 @pytest.mark.skipif(sys.platform == "win32", reason="POSIX signals")

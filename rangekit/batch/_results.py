@@ -175,6 +175,7 @@ class ResultsFile:
         }
         self.done: dict[str, list[str]] = {}  # session -> its lines, in file order
         self.status: dict[str, str] = {}  # session -> "ok" or "error"
+        self.errors: dict[str, str] = {}  # failed session -> its message
         from rangekit.io.guard import check_output
 
         check_output(self.path)  # no link, device or directory; the folder exists
@@ -232,17 +233,19 @@ class ResultsFile:
         except OSError as e:
             raise InputFileError(f"cannot write '{self.path}': {e.strerror or e}") from e
 
-    def _parse(self, line: str) -> tuple[str, int, str]:
-        """(session, session_rows, status) of one data line; ValueError if it is not one."""
+    def _parse(self, line: str) -> tuple[str, int, str, str]:
+        """(session, session_rows, status, error) of one data line; ValueError if it is not
+        one."""
         if self.fmt == "jsonl":
             obj = json.loads(line)
-            return str(obj["session"]), int(obj["session_rows"]), str(obj["status"])
+            error = str(obj["error"] or "")
+            return str(obj["session"]), int(obj["session_rows"]), str(obj["status"]), error
         import csv
 
         cells = next(csv.reader([line]))
         if len(cells) != len(BATCH_COLUMNS):
             raise ValueError("wrong number of cells")
-        return cells[0], int(cells[1]), cells[2]
+        return cells[0], int(cells[1]), cells[2], cells[3]
 
     def _check_resumable(self, text: str) -> None:
         """Refuse to resume a file this batch did not write (one line, exit 2)."""
@@ -295,7 +298,7 @@ class ResultsFile:
                 break  # torn last line
             try:
                 line = raw.decode("utf-8")
-                name, n, status = self._parse(line)
+                name, n, status, error = self._parse(line)
             except (ValueError, KeyError, TypeError, StopIteration, csv.Error):
                 break
             if name != pending_name:
@@ -305,6 +308,8 @@ class ResultsFile:
             if len(pending) == pending_n:
                 self.done[name] = pending
                 self.status[name] = status
+                if status == "error":
+                    self.errors[name] = error
                 keep = pos
                 pending_name = None
         if keep < len(data):
@@ -328,6 +333,8 @@ class ResultsFile:
         name = str(rows[0]["session"])
         self.done[name] = lines
         self.status[name] = str(rows[0]["status"])
+        if self.status[name] == "error":
+            self.errors[name] = str(rows[0]["error"])
 
     def finish(self, order: Sequence[str]) -> None:
         """Rewrite the file atomically with the sessions in ``order`` (others after, by name)."""

@@ -19,13 +19,15 @@ from rangekit.errors import InvalidParameterError
 class BatchSummary:
     """Counts of a finished batch over its sessions: ``total``; ``skipped`` (found done
     in a resumed file); ``ok`` and ``failed`` (status of every session in the file, the
-    skipped ones included); and the output ``path``."""
+    skipped ones included); the output ``path``; and ``first_error``, the first failed
+    session in session order with its message (``"NAME: MESSAGE"``, None if none failed)."""
 
     total: int
     skipped: int
     ok: int
     failed: int
     path: str
+    first_error: str | None = None
 
 
 def _chunks(items: Sequence[Session], size: int) -> list[list[Session]]:
@@ -129,7 +131,8 @@ def run_batch(
         results.close()
     ok = sum(results.status.get(n) == "ok" for n in order)
     failed = sum(results.status.get(n) == "error" for n in order)
-    summary = BatchSummary(total, skipped, ok, failed, str(results.path))
+    first = next((f"{n}: {results.errors[n]}" for n in order if n in results.errors), None)
+    summary = BatchSummary(total, skipped, ok, failed, str(results.path), first)
     results.finish(order)
     return summary
 
