@@ -15,10 +15,14 @@ import click
 from rangekit_cli._options import (
     FiniteRange,
     debug_option,
+    detail,
     emit,
     float_list,
     format_choice,
+    note,
     output_option,
+    verbosity_options,
+    warn,
 )
 
 #: Track columns that hold whole numbers (written as integers).
@@ -93,8 +97,11 @@ def initial_pose_option(help: str):
 
 
 def output_options(f):
-    """--format csv|json, -o/--output, --debug: every track subcommand writes a track."""
-    return format_choice(("csv", "json"), "csv")(output_option(debug_option(f)))
+    """--format csv|json|table, -o/--output, -q/--quiet, -v/--verbose, --debug: every
+    track subcommand writes a track, a summary (dropped by --quiet) and its warnings."""
+    return format_choice(("csv", "json", "table"), "csv")(
+        output_option(verbosity_options(debug_option(f)))
+    )
 
 
 def parse_pose(text: str | None, n: int) -> list[float] | None:
@@ -142,13 +149,24 @@ def write_track(
     extra: dict | None = None,
     summary: str | None = None,
     notes: tuple[str, ...] | list[str] = (),
+    chosen: dict | None = None,
 ) -> None:
-    """Print (or write to ``-o``) the track as CSV or JSON, then the summary and warnings."""
+    """Print (or write to ``-o``) the track as CSV or JSON, then the summary (a note,
+    dropped by ``--quiet``) and the warnings (always); with ``--verbose`` first the
+    parameters used (``chosen``, the library's defaults filled in)."""
+    if chosen:
+        detail(
+            f"rangekit: track {filter_name}: " + ", ".join(f"{k} {v}" for k, v in chosen.items())
+        )
     table = [_row(columns, r) for r in rows]
     if fmt == "csv":
         from rangekit.io.csvlog import write_table
 
         text = write_table(columns, table)
+    elif fmt == "table":  # aligned, with the number rules of every verb's tables
+        from rangekit.io.results import format_rows
+
+        text = format_rows([dict(zip(columns, r, strict=True)) for r in table], columns, "table")
     else:
         obj = {
             "filter": filter_name,
@@ -161,6 +179,6 @@ def write_track(
         text = json.dumps(obj, indent=2) + "\n"
     emit(text, output)
     if summary:
-        click.echo(summary, err=True)
-    for note in notes:
-        click.echo(f"warning: {note}", err=True)
+        note(summary)
+    for msg in notes:
+        warn(f"warning: {msg}")

@@ -192,4 +192,4 @@ def _run(filter_, *, log, beacons, rig, initial_pose, gate, no_gate, fmt, output
         "warnings": warnings,
     }
     write_track(DUHL_COLUMNS, rows, filter_name=filter_, log=name, fmt=fmt, output=output,
-                extra=extra, summary=summary, notes=warnings)  # fmt: skip
+                extra=extra, summary=summary, notes=warnings, chosen=extra["config"])  # fmt: skip

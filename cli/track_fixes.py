@@ -34,9 +34,11 @@ def dead_reckoning_cmd(log, smooth, gate, no_gate, fmt, output):
     """
     from rangekit.localize.deadreckoning import track_log
 
-    columns, rows = track_log(log, smooth=bool(smooth), **gate_value(gate, no_gate))
+    kw = gate_value(gate, no_gate)
+    columns, rows = track_log(log, smooth=bool(smooth), **kw)
+    chosen = {"gate": kw.get("gate", default(dead_reckon, "gate")), "smooth": bool(smooth)}
     write_track(columns, rows, filter_name="dead-reckoning", log=str(log), fmt=fmt,
-                output=output, smoothed=bool(smooth))  # fmt: skip
+                output=output, smoothed=bool(smooth), chosen=chosen)  # fmt: skip
 
 
 @click.command("lmax")
@@ -82,4 +84,6 @@ def lmax_cmd(log, l_max, i_star, fmt, output):
     columns, rows = track_fixes(
         t, fixes, l_max_m=l_max, i_star=None if i_star is None else i_star - 1
     )
-    write_track(columns, rows, filter_name="lmax", log=str(log), fmt=fmt, output=output)
+    chosen = {"l_max_m": l_max, "filter": "online" if i_star is None else f"offline from {i_star}"}
+    write_track(columns, rows, filter_name="lmax", log=str(log), fmt=fmt, output=output,
+                chosen=chosen)  # fmt: skip

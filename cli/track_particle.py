@@ -181,5 +181,6 @@ def particle_cmd(log, steps, map_path, ranges, start, method, mode, particles, m
             {"step": e.step, "t_s": e.t_s, "kind": e.kind, "message": e.message} for e in trk.events
         ],
     }
+    chosen = {k: extra[k] for k in ("method", "mode", "n_particles", "mounts_deg", "lever_arms_m")}
     write_track(columns, rows, filter_name="particle", log=str(steps), fmt=fmt, output=output,
-                extra=extra, summary=summary, notes=notes)  # fmt: skip
+                extra=extra, summary=summary, notes=notes, chosen=chosen)  # fmt: skip

@@ -146,8 +146,9 @@ def _jiang(log, kw: dict, smooth: bool, fmt: str, output) -> None:
             f"; smoothed along the final best branch ({other} epochs where the causal "
             "filter reported another)"
         )
+    chosen = {k: kw.get(k, default(track_ranges, k)) for k in ("accel_psd", "gate", "cross_sign")}
     write_track(columns, rows, filter_name="range-ekf", log=name, fmt=fmt, output=output,
-                smoothed=smooth, extra=extra, summary=summary)  # fmt: skip
+                smoothed=smooth, extra=extra, summary=summary, chosen=chosen)  # fmt: skip
 
 
 def _with_rig(log, rig_path, initial_pose, robust, smooth, steps, fmt, output) -> None:
@@ -209,5 +210,6 @@ def _with_rig(log, rig_path, initial_pose, robust, smooth, steps, fmt, output) -
             for d in trk.downweighted
         ],
     }
+    chosen = {"rig": rig_path, "robust": robust, "initial_pose": pose0 or "from the ranges"}
     write_track(columns, rows, filter_name="range-ekf", log=name, fmt=fmt, output=output,
-                smoothed=smooth, extra=extra, summary=summary)  # fmt: skip
+                smoothed=smooth, extra=extra, summary=summary, chosen=chosen)  # fmt: skip

@@ -111,6 +111,11 @@ def test_track_csv_follows_the_truth(sims, files, tr, filt):
         assert word in lines[0], lines[0]
     assert all(ln.startswith("warning: ") for ln in lines[1:]), lines
     assert f"; {len(lines) - 1} warnings" in lines[0]
+    # --quiet drops the summary, not the warnings nor the track; --verbose adds the config.
+    quiet = ok(_track(log, bcn, "-q", filt=filt))
+    assert quiet.stdout == r.stdout and quiet.stderr.splitlines() == lines[1:]
+    verbose = ok(_track(log, bcn, "-v", filt=filt)).stderr.splitlines()
+    assert verbose[1:] == lines and f"track {filt}: wheel_base_m 0.33" in verbose[0]
 
 
 def test_duhl_and_ranges_differ(log1):
@@ -262,7 +267,7 @@ def test_option_not_for_this_filter(tmp_path, filt, extra, named):
         (["--initial-pose", "1,2,3,4"], "--initial-pose"),
         (["--initial-pose", "a,b,c"], "--initial-pose"),
         (["--initial-pose", "1,nan,3"], "--initial-pose"),
-        (["--format", "table"], "--format"),
+        (["--format", "xml"], "--format"),
     ],
 )
 def test_bad_option_values(tmp_path, log1, extra, named):
@@ -509,7 +514,7 @@ def test_locate_inline_errors(tmp_path, beacons6):
         ([*good, "--tx", "2:2.7,2.9,2.7", "--method", "best"], 2, "--method"),
         ([*good, "--tx", "2:2.7,2.9,2.7", "--r-r", "0"], 2, "--r-r"),
         ([*good, "--tx", "2:2.7,2.9,2.7", "--d-th", "-1"], 2, "--d-th"),
-        ([*good, "--tx", "2:2.7,2.9,2.7", "--format", "csv"], 2, "--format"),
+        ([*good, "--tx", "2:2.7,2.9,2.7", "--format", "xml"], 2, "--format"),
     ]
     for args, code, *names in cases:
         _locate_err(tmp_path, ["--beacons", path, *args], code, *names)

@@ -213,7 +213,7 @@ def test_option_not_for_this_filter(tmp_path, filt, extra, named):
         (["--accel-psd", "0"], "--accel-psd"),
         (["--accel-psd", "nan"], "--accel-psd"),
         (["--cross-sign", "other"], "--cross-sign"),
-        (["--format", "table"], "--format"),
+        (["--format", "xml"], "--format"),
     ],
 )
 def test_bad_option_values(jiang_log, extra, named):

@@ -62,6 +62,41 @@ def test_help_shows_the_library_defaults():
     assert f"[{ParticleConfig().method}]" in text
 
 
+@pytest.mark.parametrize("name", FILTERS)
+def test_every_subcommand_has_quiet_and_verbose(name):
+    out = ok(run(["track", name, "--help"])).stdout
+    assert "-q, --quiet" in out and "-v, --verbose" in out
+
+
+def test_quiet_drops_the_summary_verbose_says_the_parameters(tmp_path):
+    from rangekit.sim import jiang2018
+
+    log = tmp_path / "walk.csv"
+    log.write_text(jiang2018.simulate(rng=1).log.to_csv())
+    normal = ok(run(["track", "range-ekf", log]))
+    assert normal.stderr.startswith("range-ekf: ")
+    quiet = ok(run(["track", "range-ekf", log, "--quiet"]))
+    assert quiet.stderr == "" and quiet.stdout == normal.stdout
+    verbose = ok(run(["track", "range-ekf", log, "-v", "--accel-psd", "0.1"]))
+    lines = verbose.stderr.splitlines()
+    assert lines[0] == "rangekit: track range-ekf: accel_psd 0.1, gate 0.999, cross_sign physical"
+    assert lines[1:] == normal.stderr.splitlines()
+    assert_error(run(["track", "range-ekf", log, "-q", "-v"]), 2, "--quiet")
+
+
+def test_table_format_aligns_the_same_rows(fixes):
+    import csv
+    import io
+
+    rows = list(csv.reader(io.StringIO(ok(run(["track", "lmax", fixes, "--l-max", "0.5"])).stdout)))
+    table = ok(run(["track", "lmax", fixes, "--l-max", "0.5", "--format", "table"])).stdout
+    lines = table.splitlines()
+    assert lines[0].split() == rows[0] == ["t_s", "x_m", "y_m"]
+    assert len(lines) == len(rows) and len({len(ln) for ln in lines}) == 1  # aligned
+    for got, want in zip(lines[1:], rows[1:], strict=True):
+        assert [float(v) for v in got.split()] == pytest.approx([float(v) for v in want], abs=1e-6)
+
+
 def test_deprecated_filter_form_gives_the_same_track(fixes):
     new = ok(run(["track", "lmax", fixes, "--l-max", "0.5"]))
     assert new.stderr == ""
