@@ -208,3 +208,15 @@ def test_exchanges_with_other_device_counts_are_refused():
     three = ExchangeRanges(9, 7.0, (), arrivals=(*ex[0].arrivals, ex[0].arrivals[0]))
     with pytest.raises(IncompatibleInputError, match="exchange 9 has 3 recordings where the ot"):
         estimate_clock_rates([*ex, three])
+
+
+def test_span_is_that_of_device_0s_own_beeps():
+    """span_s: first to last own beep of device 0 in its recording, whatever the gaps."""
+    ex = _exchanges(n=4)
+    last = ex[-1]
+    t0, t1 = last.arrivals[0].onset_s, last.arrivals[1].onset_s
+    late = _pair(
+        [t0[0], t0[1] + 0.25], [t1[0], t1[1] + 0.25 * (1 + 40e-6)], ((1e-5, 1e-5), (1e-5, 1e-5))
+    )  # fmt: skip  (device 1 plays 0.25 s later)
+    ex[-1] = ExchangeRanges(3, last.t_s, (), arrivals=late)
+    assert estimate_clock_rates(ex).span_s == pytest.approx(t0[0] - ex[0].arrivals[0].onset_s[0])
