@@ -8,6 +8,7 @@ import click
 from rangekit_cli._options import (
     FiniteRange,
     debug_option,
+    detail,
     emit,
     format_option,
     output_option,
@@ -155,6 +156,11 @@ def locate_cmd(beacons, ranges, sigma, distances, tx_items, method, d_th, r_r, f
             f"{source}: {len(ids)} transmitter(s) heard; UHL needs at least 2 (Kim & Kim "
             "2013, eq (3))"
         )
+    detail(
+        f"rangekit: locate: {len(ids)} transmitters ({', '.join(map(str, ids))}) from "
+        f"{source}, method {method}, distance sigma "
+        f"{f'{sigma:g} m' if sigma is not None else 'per range' if sig is not None else 'none'}"
+    )
     try:
         pose = solve_pose(bcn.position(ids), d, r_R=r_r, method=method, d_th=d_th)
     except InvalidParameterError as e:

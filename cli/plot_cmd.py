@@ -9,6 +9,7 @@ from rangekit_cli._options import (
     FiniteRange,
     beep_options,
     debug_option,
+    detail,
     detector_option,
     load_template,
     make_beep,
@@ -138,6 +139,7 @@ def spectrogram_cmd(
     x, fs = _read_channel(recording, channel)
     src = f"{recording}#{channel}"
     ch = Channel(np.ascontiguousarray(x[:, channel]), fs, src)
+    detail(f"rangekit: plot spectrogram: {src}, onsets by {method}")
     arr = detect_channel(ch, beep=beep, detector=detector, probe=probe)
     what = "beep onset(s)" if probe is None else f"arrival(s) of '{probe.name}'"
     out = plot_spectrogram(

@@ -10,6 +10,7 @@ from rangekit_cli._options import (
     beep_options,
     check_outputs,
     debug_option,
+    detail,
     float_list,
     heartbeat,
     load_template,
@@ -301,6 +302,7 @@ def synth_beepbeep(
         impairments, recordings, fs=fs, seed=seed, floor_psd=floors, truth=dict(sim.truth)
     )
     truth["seed"] = seed
+    _describe_seed(seed)
     truth["setup"] = {  # what a user knows before measuring (rangekit.io.setup)
         "scheme": "beepbeep",
         "self_distance_m": [float(d["self_distance_m"]) for d in truth["devices"]],
@@ -331,6 +333,12 @@ def _ultrasonic_output(x, truth, *, peak, fs, seed, imp):
     floor = noise_floor_psd(truth["noise_sigma"] * scale, fs=fs)
     (x,), truth = _impair(imp, [x * scale], fs=fs, seed=seed, floor_psd=[floor], truth=truth)
     return x, dict(truth)
+
+
+def _describe_seed(seed) -> None:
+    """--verbose: the seed of the noise and draws (none: a fresh one, not reproducible)."""
+    what = f"seed {seed}" if seed is not None else "no --seed: fresh randomness, not reproducible"
+    detail(f"rangekit: synth: {what}")
 
 
 def _parse_pose(text: str, name: str = "--pose") -> list[float]:
@@ -538,6 +546,7 @@ def synth_oneway(
     check_outputs([out, out.with_suffix(".json"), beacons])
     write_audio(out, x, fs=fs)
     truth["seed"] = seed
+    _describe_seed(seed)
     truth["files"] = [out.name]
     truth["beacons"] = beacons.name
     truth["setup"] = {
@@ -632,6 +641,7 @@ def synth_echo(map_path, poses, mount, snr_db, no_noise, temp_c, q, fs, seed, im
     check_outputs([out, out.with_suffix(".json")])
     write_audio(out, x, fs=fs)
     truth["seed"] = seed
+    _describe_seed(seed)
     truth["map"] = str(map_path)
     truth["files"] = [out.name]
     truth["setup"] = {"scheme": "echo", "temp_c": temp_c, "period_s": truth.get("period_s")}

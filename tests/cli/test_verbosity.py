@@ -95,3 +95,23 @@ def test_progress_is_off_when_quiet_or_off_a_terminal(monkeypatch):
             ctx.meta[VERBOSITY_KEY] = level
             bar = progress(10, "x", unit="files")
         assert math.isfinite(bar.interval_s) == on, (level, tty)
+
+
+def test_verbose_names_the_seed_and_the_locate_inputs(tmp_path):
+    import json
+
+    err = ok(run(["synth", "beepbeep", "--distance", "1", "-o", tmp_path / "a.wav", "-v"])).stderr
+    assert "rangekit: synth: no --seed: fresh randomness, not reproducible" in err
+    err = ok(run(["synth", "beepbeep", "--distance", "1", "--seed", "4", "-o",
+                  tmp_path / "b.wav", "-v"])).stderr  # fmt: skip
+    assert "rangekit: synth: seed 4\n" in err
+    tx = [{"id": i, "x_m": x, "y_m": -0.75, "z_m": 2.011} for i, x in enumerate((-1.5, 0, 1.5))]
+    b = tmp_path / "b.json"
+    b.write_text(json.dumps({"format": "rangekit-beacons", "version": 1, "units": "m",
+                             "transmitters": tx}))  # fmt: skip
+    args = ["locate", "--beacons", b, "--tx", "0:2.73,2.62,2.52", "--tx", "2:2.51,2.73,2.63"]
+    r = ok(run([*args, "-v", "--sigma", "0.002"]))
+    assert r.stderr == (
+        "rangekit: locate: 2 transmitters (0, 2) from --tx, method hybrid, distance sigma 0.002 m\n"
+    )
+    assert ok(run([*args, "-q"])).stderr == ""
