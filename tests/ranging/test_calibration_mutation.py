@@ -348,3 +348,13 @@ def test_file_refusals(tmp_path, edit, match):
     p.write_text(json.dumps(doc))
     with pytest.raises(InputFileError, match=match):
         read_calibration(p)
+
+
+def test_measurements_and_calibrations_are_frozen_and_short_to_print():
+    m = _m(1.0, 2.9e-3)
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        m.tau_s = 0.0
+    cal = _cal()
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        cal.offset_m = 0.0
+    assert cal.residuals and "residuals" not in repr(cal)  # one entry per recording: not shown
