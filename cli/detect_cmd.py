@@ -62,6 +62,8 @@ def detect_cmd(files, detector, template, expected, min_separation, weighting, f
                **beep_kw):  # fmt: skip
     """Beep onsets (or --template probe onsets) in every channel of every FILE.
 
+    A FILE of - is standard input (one per command).
+
     Prints one row per beep found: file, channel, beep index, onset (float sample index
     from sample 0, and seconds), its 1-sigma in samples, SNR, confidence (fraction of
     bursts whose timing fits the burst spacing) and flags (clipped, low_snr,

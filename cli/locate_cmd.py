@@ -40,7 +40,8 @@ DISTANCE_COLUMNS = ("tx", "d1_m", "d2_m", "d3_m")
     default=None,
     metavar="FILE.csv",
     help="CSV with header tx,d1_m,d2_m,d3_m: one row per transmitter heard, its distances "
-    "(m) to receivers 1, 2, 3 (at 0, 120, 240 degrees from the heading).",
+    "(m) to receivers 1, 2, 3 (at 0, 120, 240 degrees from the heading); - reads standard "
+    "input.",
 )
 @click.option(
     "--ranges",
@@ -49,7 +50,8 @@ DISTANCE_COLUMNS = ("tx", "d1_m", "d2_m", "d3_m")
     metavar="FILE.csv|json",
     help="The output of `rangekit range --scheme oneway --tx-order ...` (CSV or JSON): per "
     "transmitter the median distance to each receiver (channel 0, 1, 2 = receiver 1, 2, 3) "
-    "and the median sigma, which gives the pose's sigma.",
+    "and the median sigma, which gives the pose's sigma; - reads standard input (JSON when "
+    "it starts with {).",
 )
 @click.option(
     "--sigma",

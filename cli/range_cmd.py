@@ -156,6 +156,8 @@ def range_cmd(
 ):
     """Distances from recordings: two-way beeps, one-way beacons or pulse-echo.
 
+    A FILE of - is standard input (one per command; no sidecar setup is read for it).
+
     beepbeep: FILE... is one WAV with one channel per device (channel i = device i), or
     one mono WAV per device (file i = device i). Devices played in index order (device 0
     first). Prints every pair's distance with its 1-sigma uncertainty.
@@ -198,6 +200,10 @@ def range_cmd(
         for opt, v in only:
             if v is not None:
                 raise click.UsageError(f"{opt} applies to --series with --scheme beepbeep only")
+    if jobs is not None and jobs > 1 and any(f == "-" for f in files):
+        raise click.UsageError(
+            "--jobs N reads the recording in every worker: give a file, not - (standard input)"
+        )
     series_opts = {"block_s": block_s} if series else None
     from rangekit_cli._options import load_template
 

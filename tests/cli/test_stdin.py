@@ -50,6 +50,9 @@ def test_verbose_says_no_setup_is_searched_for_stdin():
 
 def test_one_stdin_per_command():
     assert_error(run(["range", "-", "-"], input=WAV.read_bytes()), 2, "standard input")
+    # Worker processes cannot share the one standard input.
+    r = run(["range", "--series", "-", "--jobs", "2"], input=WAV.read_bytes())
+    assert_error(r, 2, "--jobs", "standard input")
 
 
 @pytest.mark.parametrize(
