@@ -10,6 +10,24 @@ import click
 FORMATS = ("table", "json", "csv")
 
 
+def shown_default(value) -> str:
+    """A default in a help text, the one way every ``--help`` shows them.
+
+    >>> shown_default(0.05), shown_default("no gate")
+    ('[default: 0.05]', '[default: no gate]')
+    """
+    return f"[default: {value:g}]" if isinstance(value, float) else f"[default: {value}]"
+
+
+def doc_page(name: str) -> str:
+    """How a help text names a documentation page (an installed package has no docs/).
+
+    >>> doc_page("rigs.md")
+    'rigs.md of the documentation'
+    """
+    return f"{name} of the documentation"
+
+
 class FiniteRange(click.FloatRange):
     """click.FloatRange that also refuses NaN (which compares false to every bound)."""
 
