@@ -47,20 +47,22 @@ Examples
 #   _sessions  inputs expanded safely, grouped into sessions (rules 1-3)
 #   _sidecars  the values a sidecar gives, type- and range-checked
 #   _pairing   device folders paired by name (rule 4)
-#   _options   BatchOptions, option values as JSON
+#   _options   BatchOptions (its two-way part TwoWayOptions), option values as JSON
 #   _ranging   one session -> rows (run_session)
 #   _results   the results file, its metadata file, resume, iter_rows
 #   _run       run_batch: local worker processes
 #   _dask      the Dask cluster: address, connection, watchdog
+# Two private names stay importable from the package (the tests of the sidecar checks
+# and of the Dask watchdog import them from here): the `X as X` re-exports below.
 
 from __future__ import annotations
 
 from rangekit.batch._dask import (
     DASK_CONNECT_TIMEOUT_S,
     DASK_WATCHDOG_S,
-    _dask_watch,
     check_scheduler_address,
 )
+from rangekit.batch._dask import _dask_watch as _dask_watch
 from rangekit.batch._options import SCHEMES, BatchOptions, TwoWayOptions, json_value
 from rangekit.batch._pairing import pair_sessions_by_name
 from rangekit.batch._ranging import run_session
@@ -74,7 +76,8 @@ from rangekit.batch._results import (
 )
 from rangekit.batch._run import BatchSummary, run_batch
 from rangekit.batch._sessions import AUDIO_SUFFIXES, Session, find_sessions
-from rangekit.batch._sidecars import MAX_SIDECAR_FILES, _sidecar_values
+from rangekit.batch._sidecars import MAX_SIDECAR_FILES
+from rangekit.batch._sidecars import _sidecar_values as _sidecar_values
 
 __all__ = [
     "AUDIO_SUFFIXES",
@@ -99,6 +102,3 @@ __all__ = [
     "run_batch",
     "run_session",
 ]
-# Private names kept importable from the package (tests of the sidecar checks and the
-# Dask watchdog import them from here).
-_PRIVATE = (_dask_watch, _sidecar_values)
