@@ -386,6 +386,13 @@ def _apply_setup(files, scheme, self_distance, temp_c, speed, cal, kw):
 
     if any(is_stdin(f) for f in files):
         detail("rangekit: setup: not searched for standard input (-)")
+        ctx = click.get_current_context()
+        default = ctx.get_parameter_source("self_distance") == click.core.ParameterSource.DEFAULT
+        if scheme == "beepbeep" and cal is None and default:
+            note_after(
+                "rangekit: standard input: no sidecar setup is read for -, so the "
+                "self-distance is 0 m (give --self-distance)"
+            )
         return self_distance, temp_c
     setup = find_setup(files)
     if setup is None:

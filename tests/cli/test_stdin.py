@@ -26,7 +26,7 @@ def test_range_from_real_stdin_equals_the_file():
     assert piped.returncode == 0, piped.stderr
     direct = ok(run(["range", WAV, "--no-setup"]))
     assert piped.stdout.decode() == direct.stdout
-    assert piped.stderr == b""
+    assert piped.stderr.decode().startswith("rangekit: standard input: no sidecar setup")
 
 
 def test_detect_and_series_from_stdin():
@@ -46,6 +46,10 @@ def test_detect_and_series_from_stdin():
 def test_verbose_says_no_setup_is_searched_for_stdin():
     r = ok(run(["range", "-", "-v"], input=WAV.read_bytes()))
     assert "setup: not searched for standard input" in r.stderr
+    # Without --self-distance the default (0 m) is said, after the results.
+    assert r.stderr.endswith("the self-distance is 0 m (give --self-distance)\n")
+    r = ok(run(["range", "-", "--self-distance", "0.1"], input=WAV.read_bytes()))
+    assert r.stderr == ""
 
 
 def test_one_stdin_per_command():
