@@ -142,20 +142,21 @@ def test_two_distances_recover_speed_and_offset_exactly():
 def test_speed_covariance_is_the_weighted_fit_propagated():
     """cov of (c, b) = J cov(alpha, beta) J^T for tau = alpha d + beta, c = 1 / alpha,
     b = -beta / alpha; checked against finite differences of that map."""
-    jit = [3e-6, -2e-6, 1e-6, -4e-6, 2e-6, 0.0]
+    jit = [9e-6, -6e-6, 3e-6, -12e-6, 6e-6, 0.0]
     sig = [2e-6, 4e-6, 2e-6, 3e-6, 2e-6, 5e-6]
     ds = [0.5, 1.0, 1.5, 2.0, 2.5, 3.0]
     ms = [_m(d, (d - 0.05) / 340.0 + e, s, f"r{i}") for i, (d, e, s) in
           enumerate(zip(ds, jit, sig, strict=False))]  # fmt: skip
-    cal = fit_calibration(ms, scheme="oneway", speed_m_s=C0)
+    cal = fit_calibration(ms, scheme="oneway", speed_m_s=C0, tolerance_m=0.0)
     d = np.array(ds)
     tau = np.array([m.tau_s for m in ms])
-    var = np.array(sig) ** 2 + (DEFAULT_TOLERANCE_M / C0) ** 2
+    var = np.array(sig) ** 2
     X = np.stack([d, np.ones_like(d)], axis=1)
     A = X.T @ (X / var[:, None])
     theta = np.linalg.solve(A, X.T @ (tau / var))
     r = tau - X @ theta
     chi2 = np.sum(r * r / var) / (len(d) - 2)
+    assert chi2 > 1.5  # the times scatter more than their sigmas: the covariance grows
     cov = np.linalg.inv(A) * max(1.0, chi2)
 
     def cb(t):
@@ -295,6 +296,8 @@ def test_file_round_trip(tmp_path):
         ("offset_m", 100.0, True),
         ("offset_m", -100.5, False),
         ("sigma_offset_m", -1e-9, False),
+        ("sigma_offset_m", 100.0, True),
+        ("sigma_offset_m", 100.5, False),
         ("latency_s", 10.5, False),
         ("sigma_latency_s", 10.0, True),
         ("sigma_speed_m_s", 1000.5, False),
