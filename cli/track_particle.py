@@ -8,7 +8,13 @@ import math
 import click
 from rangekit_cli.track_common import log_argument, output_options, rig_option, write_track
 
-from rangekit.localize.particle import MAX_PARTICLES, METHODS, MODES, ParticleConfig
+from rangekit.localize.particle import (
+    MAX_CANDIDATES,
+    MAX_PARTICLES,
+    METHODS,
+    MODES,
+    ParticleConfig,
+)
 
 _DEFAULTS = {f.name: f.default for f in dataclasses.fields(ParticleConfig)}
 _MOUNTS_DEG = ",".join(f"{math.degrees(a):g}" for a in _DEFAULTS["mount_angles_rad"])
@@ -58,8 +64,9 @@ _MOUNTS_DEG = ",".join(f"{math.degrees(a):g}" for a in _DEFAULTS["mount_angles_r
     type=click.IntRange(min=1, max=MAX_PARTICLES),
     default=None,
     metavar="N",
-    help=f"ν, the number of particles kept, at most {MAX_PARTICLES:,} (memory: the "
-    f"paper's filter holds ν κ candidate moves) [{_DEFAULTS['n_particles']}, the paper's].",
+    help=f"ν, the number of particles kept, at most {MAX_PARTICLES:,} (memory), and with "
+    f"--method girard at most {MAX_CANDIDATES // _DEFAULTS['kappa']:,} (it holds ν κ = "
+    f"{_DEFAULTS['kappa']} candidate moves) [{_DEFAULTS['n_particles']}, the paper's].",
 )
 @click.option(
     "--mounts",
@@ -131,9 +138,13 @@ def particle_cmd(log, steps, map_path, ranges, start, method, mode, particles, m
         cfg["mount_angles_rad"] = tuple(
             math.radians(a) for a in float_list(mounts, name="--mounts", lo=-360.0, hi=360.0)
         )
-    if rig is None:
-        config = ParticleConfig(**cfg)
-    else:
+    try:
+        config = ParticleConfig(**cfg)  # the options (exit 2)
+    except InvalidParameterError as e:
+        if "n_particles" not in str(e):
+            raise
+        raise click.BadParameter(str(e), param_hint="--particles") from None
+    if rig is not None:  # and how they fit the rig (exit 5)
         from rangekit.rig import read_rig
 
         try:

@@ -46,6 +46,7 @@ from rangekit.sensors.srf02 import SRF02
 from rangekit.types import RngLike
 
 __all__ = [
+    "MAX_CANDIDATES",
     "MAX_PARTICLES",
     "METHODS",
     "MODES",
@@ -71,11 +72,13 @@ METHODS = ("girard", "sir")
 #: Table 1's columns: steps only, steps + floor plan, steps + floor plan + ranging.
 MODES = ("imu", "model", "ranging")
 
-#: Largest ``n_particles`` accepted. Memory bounds it: SIR holds about 100 bytes per
-#: particle (0.1 GB at the bound), the paper's filter ν κ candidate moves of about 56 bytes
-#: each before merging (1.1 GB at the bound with κ = 20); time grows linearly (about 5
-#: SIR updates per second at the bound on one core).
+#: Largest ``n_particles`` accepted. Memory bounds it: an SIR update peaks at about 110
+#: bytes per particle (numpy arrays, measured with tracemalloc: 0.11 GB at the bound).
 MAX_PARTICLES = 1_000_000
+#: Largest ``n_particles * kappa`` of the paper's filter: a step holds every candidate
+#: move before merging, about 110 bytes each (measured: 2.2 GB for ν = 100,000 parents x
+#: κ = 20), so at most 0.55 GB; ν <= 250,000 with the paper's κ = 20.
+MAX_CANDIDATES = 5_000_000
 
 #: Columns of :func:`track_rows` (the ``rangekit track particle`` output).
 TRACK_COLUMNS = ("t_s", "x_m", "y_m", "n_particles", "spread_m")
@@ -96,8 +99,9 @@ class ParticleConfig:
         Table 1's columns: steps only; steps and the floor plan (moves through walls
         eliminated); steps, plan and range readings. Default ``"ranging"``.
     n_particles : int
-        ν, the maximum number of particles kept (§3.1), at most :data:`MAX_PARTICLES`.
-        Default 150.
+        ν, the maximum number of particles kept (§3.1), at most :data:`MAX_PARTICLES`
+        (and ``n_particles * kappa`` at most :data:`MAX_CANDIDATES` with
+        ``method="girard"``). Default 150.
     eps_m : float
         ε, radius of the motion-vector error (§3.1), m. Default 0.25.
     kappa : int
@@ -257,7 +261,14 @@ class ParticleConfig:
         if vals["n_particles"] > MAX_PARTICLES:
             raise InvalidParameterError(
                 f"n_particles={vals['n_particles']} is above the bound {MAX_PARTICLES:,} "
-                "(memory: the paper's filter holds n_particles * kappa candidate moves)"
+                "(memory: about 110 bytes per particle)"
+            )
+        if self.method == "girard" and vals["n_particles"] * vals["kappa"] > MAX_CANDIDATES:
+            raise InvalidParameterError(
+                f"n_particles * kappa = {vals['n_particles']} * {vals['kappa']} is above the "
+                f"bound {MAX_CANDIDATES:,} of method='girard' (memory: every candidate move "
+                "is held before merging, about 110 bytes each); use fewer particles or "
+                "method='sir'"
             )
         vals["sensor"] = sensor
         vals["mount_angles_rad"] = mounts

@@ -243,5 +243,8 @@ def test_particle_count_bound(files, walk):
     args = ["track", "particle", files["steps"], "--start", _start(walk)]
     line = assert_error(run([*args, "--particles", P.MAX_PARTICLES + 1]), 2, "--particles")
     assert f"{P.MAX_PARTICLES}" in line
+    n = P.MAX_CANDIDATES // ParticleConfig().kappa + 1  # the paper's filter: n kappa moves
+    assert_error(run([*args, "--particles", n]), 2, "--particles", "5,000,000", "sir")
     help_text = " ".join(ok(run(["track", "particle", "--help"])).stdout.split())
     assert f"at most {P.MAX_PARTICLES:,}" in help_text
+    assert f"--method girard at most {n - 1:,}" in help_text

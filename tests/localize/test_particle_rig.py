@@ -68,9 +68,16 @@ def test_lever_arms_are_validated():
 
 
 def test_the_particle_count_is_bounded():
-    P.ParticleConfig(n_particles=P.MAX_PARTICLES)
+    P.ParticleConfig(method="sir", n_particles=P.MAX_PARTICLES)
     with pytest.raises(InvalidParameterError, match="1,000,000"):
-        P.ParticleConfig(n_particles=P.MAX_PARTICLES + 1)
+        P.ParticleConfig(method="sir", n_particles=P.MAX_PARTICLES + 1)
+    # The paper's filter holds n * kappa candidate moves: 5,000,000 at most.
+    P.ParticleConfig(n_particles=250_000)
+    P.ParticleConfig(n_particles=500_000, kappa=10)
+    with pytest.raises(InvalidParameterError, match="5,000,000"):
+        P.ParticleConfig(n_particles=250_001)
+    with pytest.raises(InvalidParameterError, match="5,000,000"):
+        P.ParticleConfig(n_particles=1000, kappa=5001)
 
 
 def test_a_lever_arm_moves_the_rays_origin():
