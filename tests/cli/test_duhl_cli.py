@@ -1,4 +1,4 @@
-"""CLI tests of ``rangekit track --filter duhl|duhl-ranges`` and ``rangekit locate``.
+"""CLI tests of ``rangekit track duhl|duhl-ranges`` and ``rangekit locate``.
 
 Inputs are Kim & Kim 2013 §V runs from :mod:`rangekit.sim.kim2013`, cut to 10 s.
 """
@@ -79,7 +79,7 @@ def _track(log, bcn, *extra, filt="duhl"):
     return run(["track", filt, log, "--beacons", bcn, *extra])
 
 
-# --- track --filter duhl / duhl-ranges -------------------------------------------------------
+# --- track duhl / duhl-ranges ----------------------------------------------------------------
 
 
 @pytest.mark.parametrize("tr", [1, 3])
