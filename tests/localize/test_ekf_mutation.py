@@ -146,3 +146,25 @@ def test_covariance_checks_use_a_relative_tolerance():
     with pytest.raises(InvalidParameterError, match="positive semidefinite"):
         predict([0.0, 0.0], np.diag([1e6, -2e-3]), np.eye(2), np.zeros((2, 2)))
     predict(np.zeros(0), np.zeros((0, 0)), np.zeros((0, 0)), np.zeros((0, 0)))  # empty state
+
+
+def test_rejections_are_frozen():
+    kf = ExtendedKalmanFilter([0.0], [[1.0]])
+    kf.update([50.0], np.eye(1), [[1.0]], gate=0.99)
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        kf.rejections[0].nis = 0.0
+
+
+def test_rts_checks_every_used_prediction_row_and_not_row_0():
+    """Row 0 of xs_pred / Ps_pred is unused (NaN allowed); rows 1.. must be finite."""
+    xf, Pf, xp, Pp, Fs = _run()
+    xp0, Pp0 = xp.copy(), Pp.copy()
+    xp0[0], Pp0[0] = np.nan, np.nan
+    ref = rts_smooth(xf, Pf, xp, Pp, Fs)
+    got = rts_smooth(xf, Pf, xp0, Pp0, Fs)
+    np.testing.assert_array_equal(got[0], ref[0])
+    for name, k in (("xs_pred", 1), ("Ps_pred", 1)):
+        a, b = xp.copy(), Pp.copy()
+        (a if name == "xs_pred" else b)[k] = np.nan
+        with pytest.raises(InvalidParameterError, match=f"{name} contains NaN"):
+            rts_smooth(xf, Pf, a, b, Fs)
