@@ -26,7 +26,8 @@ shared machines::
 
 With no module, every module of :data:`TESTS` is checked. The last line of each module is
 an ``@row`` (``benchmarks/_report.py``) with the score; ``--json FILE`` writes every
-mutant's outcome. The numbers are in ``docs/evidence.md``.
+mutant's outcome, and ``--rerun FILE`` runs only that file's survivors (whose source site
+is unchanged) against the tests as they are now. The numbers are in ``docs/evidence.md``.
 """
 
 from __future__ import annotations
