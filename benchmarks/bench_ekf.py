@@ -171,7 +171,7 @@ def kernel_args(ep, x0, P0, q, thr, n: int | None = None) -> tuple:
     return (
         x0, P0, float(ep.t_s[0]), ep.t_s[:n], ep.start[: n + 1], ep.kind, np.maximum(ep.a, 0),
         ep.b, ep.val, ep.var, ep.cov, ep.robot_xy, ep.robot_P, q, 1.0, thr, 1, RELOCK,
-        SIGMA_V0, *out,
+        SIGMA_V0, 1, *out,
     )  # fmt: skip
 
 
@@ -299,7 +299,7 @@ def main() -> int:
     tk = time_calls(lambda: run_range_ekf(*kargs), args.repeats)
     n_ep = ep.t_s.size
     us_k, us_k_med = min(tk) / n_ep * 1e6, statistics.median(tk) / n_ep * 1e6
-    xs_k, acc_k, reinit_k = kargs[19], kargs[23], kargs[27]
+    xs_k, acc_k, reinit_k = kargs[20], kargs[24], kargs[28]
     err = np.hypot(*(xs_k[:, 4:6] - truth[:, 4:6]).T)
     print(
         f"run_range_ekf: {n_ep} epochs in {min(tk) * 1e3:.2f} ms (best of {args.repeats}); "
@@ -308,7 +308,7 @@ def main() -> int:
     )
 
     # 2. the kernel once per epoch from Python, and the numpy engine
-    ctx = _Ctx(ep, q, 1.0, GATE, RELOCK, SIGMA_V0)
+    ctx = _Ctx(ep, q, 1.0, GATE, RELOCK, SIGMA_V0, 1)  # one EKF iteration, as FilterPy
     python_steps(_step_compiled, ctx, x0, P0, 10)
     ts = time_calls(lambda: python_steps(_step_compiled, ctx, x0, P0, n_peer), rep_slow)
     us_s = min(ts) / n_peer * 1e6
@@ -343,7 +343,7 @@ def main() -> int:
         filterpy_run(EKF, ep, x0, P0, q, 10)
         tp = time_calls(lambda: filterpy_run(EKF, ep, x0, P0, q, n_peer), rep_slow)
         us_fp = min(tp) / n_peer * 1e6
-        xps = kargs[21]
+        xps = kargs[22]
         tc = time_calls(lambda: model_callbacks(ep, xps, q, n_peer), rep_slow)
         us_cb = min(tc) / n_peer * 1e6
 
@@ -353,14 +353,14 @@ def main() -> int:
     if EKF is not None:
         ref_name = "FilterPy ExtendedKalmanFilter"
         xs_r, Ps_r = filterpy_run(EKF, ep, x0, P0, q, N_CHECK)
-        dP = float(np.max(np.abs(kc[20] - Ps_r)))
+        dP = float(np.max(np.abs(kc[21] - Ps_r)))
     else:
         ref_name = "rangekit _step_numpy (no gate)"
-        ctx_inf = _Ctx(ep, q, 1.0, math.inf, RELOCK, SIGMA_V0)
+        ctx_inf = _Ctx(ep, q, 1.0, math.inf, RELOCK, SIGMA_V0, 1)
         xs_r = python_steps(_step_numpy, ctx_inf, x0, P0, N_CHECK)
         dP = float("nan")
-    dx = float(np.max(np.abs(kc[19] - xs_r)))
-    dx_np = float(np.max(np.abs(kc[19] - numpy_run(ep, x0, P0, q, N_CHECK))))
+    dx = float(np.max(np.abs(kc[20] - xs_r)))
+    dx_np = float(np.max(np.abs(kc[20] - numpy_run(ep, x0, P0, q, N_CHECK))))
     agree = dx <= TOL and dx_np <= TOL
 
     # 6. the table

@@ -349,10 +349,23 @@ def epoch_step(
     P[:, :] = Pp
     rx, ry = robot_xy[e, 0], robot_xy[e, 1]
     xlin = xp.copy()
+    # iterate from where the epoch's fixes (linear rows, first in the epoch) put the
+    # fixed targets, not from their prediction: two targets 0.6 m apart whose
+    # predictions are off by as much (a turn) give the pair range the wrong direction,
+    # and the update then lands on the mirror side (issue 18)
+    n_fix = 0
+    while lo + n_fix < hi and kind[lo + n_fix] >= 2:
+        n_fix += 1
+    if n_iter > 1 and 0 < n_fix < hi - lo:  # (n_iter = 1: the plain EKF, at the prior)
+        Pl = Pp.copy()
+        epoch_update(
+            xlin, Pl, xp, 1, kind, a, b, val, var, cov, lo, lo + n_fix, rx, ry, robot_P[e],
+            sign, np.inf, gate_kind_max, acc, nis, inno,
+        )  # fmt: skip
     o = int(mirror[0])
     if o >= 0:
         ux, uy = mirror[3], mirror[4]
-        dx, dy = xp[o] - mirror[1], xp[o + 1] - mirror[2]
+        dx, dy = xlin[o] - mirror[1], xlin[o + 1] - mirror[2]
         along = dx * ux + dy * uy
         xlin[o] = mirror[1] + 2.0 * along * ux - dx
         xlin[o + 1] = mirror[2] + 2.0 * along * uy - dy
@@ -391,8 +404,8 @@ def epoch_step(
         x[:] = xp
         P[:, :] = Pp
         ll = epoch_update(
-            x, P, xlin, n_iter, kind, a, b, val, var, cov, lo, hi, rx, ry, robot_P[e], sign,
-            np.inf, gate_kind_max, acc, nis, inno,
+            x, P, xlin, n_iter, kind, a, b, val, var, cov, lo, hi, rx, ry, robot_P[e],
+            sign, np.inf, gate_kind_max, acc, nis, inno,
         )  # fmt: skip
     return ll, n_re
 

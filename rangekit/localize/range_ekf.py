@@ -26,13 +26,21 @@ Choices where the paper is silent or ambiguous (``docs/theory/jiang2018.md``):
   precise such range, each with the ring spacing as tangential sigma. Every combination
   is a hypothesis (an EKF) in a bank.
 - **Mirror ambiguity.** Ranges from the robot and from the followed person, 1–1.5 m
-  apart, fix a target only up to its reflection in the line through them; when the
-  target crosses that line a single EKF may follow the wrong branch for good. At every
-  epoch each hypothesis also spawns its mirror image, and the ``n_keep`` candidates with
-  the highest cumulative measurement likelihood survive (a Gaussian-sum filter with
-  pruning). The filtered output at each epoch is the best hypothesis so far (causal;
-  it stays with the descendant of the last reported one unless beaten by 20:1);
-  the smoothed track is the RTS smoother over the lineage of the best final hypothesis.
+  apart, fix a target only up to its reflection in the line through them (§4.4.3: the
+  density is multi-modal). The bank is a Gaussian-sum filter: at every epoch each
+  hypothesis is updated twice, once linearised at its prediction and once at the
+  prediction's mirror image, and the iterated update (Gauss-Newton on the posterior,
+  Bell & Cathey 1993) takes each to its own mode of the same posterior. Both children
+  share their parent's past, so each is weighted by its measurement likelihood alone:
+  the mirror branch is the alternative history of the target, not a jump of it, and
+  needs no prior penalty. Candidates that reach the same mode (positions within
+  :data:`MERGE_M`, velocities within :data:`MERGE_MPS`) pool their weights; the
+  ``n_keep`` heaviest survive. Ranges are linearised where the epoch's fixes put the
+  fixed targets (two persons 0.6 m apart whose predictions are off by as much at a
+  turn otherwise give the pair range the wrong direction and the update the wrong
+  side). The filtered output is the most probable hypothesis at each epoch (causal),
+  the bank is also reported as a mixture with a branch probability, and the smoothed
+  track is the RTS smoother over the lineage of the best final hypothesis.
 - **Gating.** Each range is gated on its own innovation (``y_i² / S_ii`` against the
   ``gate`` quantile of chi-square with 1 dof), so one non-line-of-sight range (0.5–5 m
   too long, §5.4.3) is rejected and logged without discarding the rest of its epoch.
@@ -83,9 +91,6 @@ __all__ = [
 
 KIND_ROBOT_RANGE, KIND_PAIR_RANGE, KIND_FIX_X, KIND_FIX_Y = 0, 1, 2, 3
 
-#: Log-likelihood margin (nats, 20:1) by which another hypothesis must beat the
-#: descendant of the one reported last before the filtered output switches to it.
-SWITCH_NATS = 3.0
 
 #: Largest coordinate or range (m) a log may hold; variances up to its square.
 MAX_COORD_M = 1e6
@@ -412,11 +417,14 @@ def _h_rows(ep: _Epochs, rows: np.ndarray, rxy: np.ndarray):
     return h
 
 
-def _update_numpy(c: _Ctx, e, x, P, thr, xlin):
+def _update_numpy(c: _Ctx, e, x, P, thr, xlin, n_rows=None, n_iter=None):
     """Reference of :func:`rangekit.localize._kernels.epoch_update`: gate at ``xlin``,
-    then iterate :func:`update` on the model linearised at the last estimate."""
+    then iterate :func:`update` on the model linearised at the last estimate (the
+    epoch's first ``n_rows`` rows only, if given)."""
     ep = c.ep
-    rows = np.arange(ep.start[e], ep.start[e + 1])
+    n_iter = c.n_iter if n_iter is None else n_iter
+    hi = ep.start[e + 1] if n_rows is None else ep.start[e] + n_rows
+    rows = np.arange(ep.start[e], hi)
     h_all = _h_rows(ep, rows, ep.robot_xy[e])
     cross = "physical" if c.sign > 0 else "paper"
 
@@ -444,9 +452,9 @@ def _update_numpy(c: _Ctx, e, x, P, thr, xlin):
         kept = rows[keep]
         h_kept = _h_rows(ep, kept, ep.robot_xy[e])
         xl = xlin
-        for it in range(c.n_iter):
+        for it in range(n_iter):
             res = update(x, P, ep.val[kept], lin(h_kept, xl), R_at(keep, xl))
-            if it + 1 == c.n_iter or np.sum((res.x - xl) ** 2) < ITER_TOL_M2:
+            if it + 1 == n_iter or np.sum((res.x - xl) ** 2) < ITER_TOL_M2:
                 break
             xl = res.x
         _, logdet = np.linalg.slogdet(res.S)
@@ -473,7 +481,13 @@ def _step_numpy(c: _Ctx, x, P, streak, dt, e, mirror=NO_MIRROR):
     n_t = x.size // 4
     F, Q = cv_transition(dt, n_t, c.q)
     xp, Pp = predict(x, P, F, Q)
-    xlin = _mirror_point(xp, mirror)
+    # linearised where the epoch's fixes (its first rows) put the fixed targets
+    kinds = ep.kind[ep.start[e] : ep.start[e + 1]]
+    n_fix = int(np.argmin(kinds >= KIND_FIX_X)) if not np.all(kinds >= KIND_FIX_X) else kinds.size
+    xlin = xp
+    if c.n_iter > 1 and 0 < n_fix < kinds.size:
+        xlin = _update_numpy(c, e, xp, Pp, np.inf, xp, n_rows=n_fix, n_iter=1)[0]
+    xlin = _mirror_point(xlin, mirror)
     x, P, ll, rows, keep, marg, y = _update_numpy(c, e, xp, Pp, c.thr, xlin)
     Pp = Pp.copy()
     n_re = 0
@@ -540,8 +554,12 @@ class _Hyp:
     slot: int  # row in the history arrays
 
 
-#: Candidates whose target positions all lie within this of a better one are dropped (m).
+#: A candidate whose target positions and velocities all lie within these of a better
+#: one is the same mode (m, m/s): its weight joins the better one's. Two branches meet
+#: where the target crosses the line of ambiguity, with reflected velocities; merging
+#: on positions alone ended the other branch there.
 MERGE_M = 0.25
+MERGE_MPS = 0.25
 
 
 def _run_bank(c: _Ctx, e0: int, hyps, step, *, n_keep: int, mirror: bool):
@@ -568,7 +586,6 @@ def _run_bank(c: _Ctx, e0: int, hyps, step, *, n_keep: int, mirror: bool):
     hist: list[list[tuple]] = []  # per epoch: list of (x, P, xp, Pp, parent, ll, acc, nis, m)
     t = ep.t_s[e0]
     best_idx = np.zeros(n, dtype=np.int64)
-    reported = 0
     n_reinit = np.zeros(n, dtype=np.int64)
     mix: list[tuple] = []
     for k in range(n):
@@ -586,10 +603,11 @@ def _run_bank(c: _Ctx, e0: int, hyps, step, *, n_keep: int, mirror: bool):
         cands.sort(key=lambda r: -r[0])
         kept: list[tuple] = []
         for cd in cands:
-            pos = cd[1].reshape(-1, 4)[:, :2]
+            blk = cd[1].reshape(-1, 4)
             near = [
                 i for i, kk in enumerate(kept)
-                if np.max(np.hypot(*(pos - kk[1].reshape(-1, 4)[:, :2]).T)) < MERGE_M
+                if np.max(np.hypot(*(blk[:, :2] - kk[1].reshape(-1, 4)[:, :2]).T)) < MERGE_M
+                and np.max(np.hypot(*(blk[:, 2:] - kk[1].reshape(-1, 4)[:, 2:]).T)) < MERGE_MPS
             ]  # fmt: skip
             if near:
                 # the same mode reached from another parent or branch: its weight joins
@@ -603,15 +621,10 @@ def _run_bank(c: _Ctx, e0: int, hyps, step, *, n_keep: int, mirror: bool):
         hist.append(
             [(cd[1], cd[2], cd[3], cd[4], cd[6], cd[7], cd[8], cd[9], cd[11]) for cd in kept]
         )
-        # report the best hypothesis, but stay with the descendant of the one reported
-        # last unless the best beats it by more than SWITCH_NATS (no flapping between
-        # mirror images that explain the ranges equally well)
+        # report the most probable hypothesis (kept is sorted by weight); with honest
+        # branch weights no hysteresis is needed (3 nats of it cost 0.3-2.3 m of median
+        # target-2 error in the Jiang lab runs: the output stayed on a refuted branch)
         rep = 0
-        if k > 0:
-            desc = [i for i, cd in enumerate(kept) if cd[6] == reported]
-            if desc and kept[0][0] - kept[desc[0]][0] < SWITCH_NATS:
-                rep = desc[0]
-        reported = rep
         best_idx[k] = rep
         mix.append(_mixture(kept, rep, n_t))
         bank = [_Hyp(cd[1], cd[2], cd[5], cd[0], i) for i, cd in enumerate(kept)]
@@ -841,6 +854,10 @@ def track_ranges(
         a fixed target, in the line through them (default True). Two ranges from anchors
         1–1.5 m apart fix a target only up to this reflection, and a single EKF that
         follows the wrong branch when the target crosses the line never returns.
+    iterations : int
+        Gauss-Newton iterations of each update (the iterated EKF; >= 1, default 5),
+        started where the epoch's fixes put the fixed targets. 1: the plain EKF,
+        linearised at the prediction.
     engine : {"compiled", "numpy"}
         The numba loop (default) or the plain-numpy reference built on
         :func:`rangekit.localize.ekf.update` (slow; for checking).

@@ -267,7 +267,9 @@ def paper_settings(case: str) -> dict:
 
     ``"lab_moderate"`` (evening, sigma_d 0.10 m), ``"lab_heavy"`` (daytime, 0.15 m), both
     with robot sigma 0.06 m (§5.2.1-5.2.2); ``"atrium"`` (sigma_d 0.25 m, robot 0.10 m).
-    A fresh dict on every call.
+    ``"lab_mismatch"`` is not the paper's: the moderate lab with ranges drawn from
+    another law than the filter's (+0.10 m bias, skewed scatter of 0.10 m, 5 % outliers
+    up to +0.7 m, as real acoustic and UWB ranges; issue 18). A fresh dict on every call.
 
     Examples
     --------
@@ -278,7 +280,10 @@ def paper_settings(case: str) -> dict:
         "lab_moderate": {"scenario": "lab", "sigma_d_m": 0.10, "robot_sigma_m": 0.06},
         "lab_heavy": {"scenario": "lab", "sigma_d_m": 0.15, "robot_sigma_m": 0.06},
         "atrium": {"scenario": "atrium", "sigma_d_m": 0.25, "robot_sigma_m": 0.10},
-    }
+        "lab_mismatch": {"scenario": "lab", "sigma_d_m": 0.10, "robot_sigma_m": 0.06,
+                         "range_bias_m": 0.10, "skew_shape": 4.0, "outlier_prob": 0.05,
+                         "outlier_max_m": 0.7},
+    }  # fmt: skip
     if case not in table:
         raise InvalidParameterError(f"case={case!r} must be one of {', '.join(table)}")
     return dict(table[case])
@@ -458,6 +463,10 @@ def simulate(
     nlos: float | None = None,
     fail_prob: float = 0.0,
     n_targets: int = 2,
+    range_bias_m: float = 0.0,
+    skew_shape: float | None = None,
+    outlier_prob: float = 0.0,
+    outlier_max_m: float = 0.7,
     rng=None,
 ) -> JiangRun:
     """Simulate a Jiang 2018 §5.3 tracking run and the robot's measurement log.
@@ -475,9 +484,13 @@ def simulate(
       (Eq. 4c);
     * for every target j >= 2, a range row 0 -> j (true robot to target distance,
       Eq. 1a/4a) and a range row 1 -> j (Target 1 to target j, Eq. 1b/4b), each + N(0,
-      sigma_d^2) with ``sigma_m`` = sigma_d. A range is NLOS with probability ``nlos``
-      (independently per range) and then too long by U(0.5, 5) m (§5.4.3); it fails (NaN)
-      with probability ``fail_prob``. Ranges are clipped at 0 (they are distances).
+      sigma_d^2) with ``sigma_m`` = sigma_d (with ``skew_shape``: a standardised gamma
+      of that shape instead, mean 0, 1-sigma sigma_d, skewness 2/sqrt(shape), plus
+      ``range_bias_m``, plus with probability ``outlier_prob`` a U(0, ``outlier_max_m``)
+      excess: the filter's Gaussian law is then not the simulator's). A range is NLOS
+      with probability ``nlos`` (independently per range) and then too long by U(0.5, 5)
+      m (§5.4.3); it fails (NaN) with probability ``fail_prob``. Ranges are clipped at 0
+      (they are distances).
 
     Parameters
     ----------
@@ -502,6 +515,13 @@ def simulate(
         Probability that a range is NLOS (None or 0: never).
     fail_prob : float
         Probability that a ranging fails (range logged as NaN).
+    range_bias_m : float
+        Added to every range (|bias| <= 1 m; the log's sigma_m does not include it).
+    skew_shape : float or None
+        Shape (> 0) of the standardised gamma the range noise is drawn from (None:
+        Gaussian, the filter's own law).
+    outlier_prob, outlier_max_m : float
+        Probability of a positive outlier per range and its largest excess (m).
     n_targets : int
         Number of persons, >= 2 (2 is the paper's setup). Target j >= 3 walks Target 2's
         path, trailing Target 2 by (j - 2) ``EXTRA_TARGET_GAP_M`` in a straight line
@@ -545,6 +565,10 @@ def simulate(
         "nlos": None if nlos is None else _validate.in_range("nlos", nlos, 0.0, 1.0),
         "fail_prob": _validate.in_range("fail_prob", fail_prob, 0.0, 1.0),
         "n_targets": _validate.positive_int("n_targets", n_targets, minimum=2),
+        "range_bias_m": _validate.in_range("range_bias_m", range_bias_m, -1.0, 1.0),
+        "skew_shape": None if skew_shape is None else _validate.positive("skew_shape", skew_shape),
+        "outlier_prob": _validate.in_range("outlier_prob", outlier_prob, 0.0, 1.0),
+        "outlier_max_m": _validate.positive("outlier_max_m", outlier_max_m),
     }
     rng = np.random.default_rng(rng)
     speed, n_tg = params["speed_mps"], params["n_targets"]
@@ -591,7 +615,15 @@ def simulate(
     truth_r = np.hypot(*(utargets[ui, b_id - 1] - pos_a).T)
     sd = params["sigma_d_m"]
     n_r = truth_r.size
-    meas = truth_r + sd * rng.standard_normal(n_r)
+    k = params["skew_shape"]
+    if k is None:
+        meas = truth_r + sd * rng.standard_normal(n_r)
+    else:
+        meas = truth_r + sd * (rng.gamma(k, 1.0, n_r) - k) / math.sqrt(k)
+    meas = meas + params["range_bias_m"]
+    if params["outlier_prob"] > 0:  # (no draw otherwise: the paper runs keep their stream)
+        outlier = rng.random(n_r) < params["outlier_prob"]
+        meas = meas + np.where(outlier, rng.uniform(0.0, params["outlier_max_m"], n_r), 0.0)
     p_nlos = params["nlos"] or 0.0
     is_nlos = rng.random(n_r) < p_nlos
     excess = rng.uniform(*NLOS_EXCESS_M, size=n_r)
