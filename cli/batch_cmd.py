@@ -140,11 +140,11 @@ def batch_cmd(
     \b
     Examples:
       rangekit batch recordings/ -o results.csv
-      rangekit batch 'archive/**/*.wav' -o results.jsonl --jobs 8 --self-distance 0.1
+      rangekit batch 'archive/**/*.wav' -o archive.jsonl --jobs 8 --self-distance 0.1
       rangekit batch recordings/ -o results.csv --resume
       rangekit batch recordings/ -o results.csv --scheduler tcp://10.0.0.5:8786
       rangekit batch logs/ --scheme echo --period 0.07 -o echo.csv
-      rangekit batch --pair-by-name phone_a/ phone_b/ -o results.csv --self-distance 0.1
+      rangekit batch --pair-by-name phone_a/ phone_b/ -o pairs.csv --self-distance 0.1
     """
     _one_thread_per_worker()
     from rangekit_cli._options import detail, is_quiet

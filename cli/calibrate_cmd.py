@@ -125,7 +125,7 @@ def calibrate_cmd(
     Examples:
       rangekit calibrate --template sweep.wav --distance 1.0 t1.wav t2.wav t3.wav -o cal.json
       rangekit calibrate a.wav@0.5 b.wav@0.5 c.wav@2 d.wav@2 --template sweep.wav -o cal.json
-      rangekit calibrate --scheme oneway --template chirp.wav --distance 2 r*.wav -o cal.json
+      rangekit calibrate --scheme oneway --template chirp.wav --distance 2 r*.wav -o ow_cal.json
       rangekit range --template sweep.wav --calibration cal.json exchange.wav
     """
     from rangekit_cli._options import load_template
