@@ -114,14 +114,13 @@ def track_cmd():
     ('rangekit track FILTER --help').
 
     Each prints the track as CSV (one row per epoch) or JSON ("columns" and "rows"),
-    and a one-line summary on stderr. Log formats: docs/formats.md.
+    and a one-line summary on stderr. Log formats: formats.md of the documentation.
 
     \b
     Examples:
       rangekit track range-ekf walk.csv --smooth -o track.csv
       rangekit track dead-reckoning imu.csv --format json
       rangekit track lmax fixes.csv --l-max 0.5 --i-star 1
-      rangekit track range-ekf --rig docs/rigs/one_tag_square.json robot.csv -o track.csv
       rangekit track duhl run.csv --beacons beacons.json -o pose.csv
       rangekit track particle steps.csv --map plan.json --ranges ranges.csv \\
           --start 1.25,1 -o track.csv

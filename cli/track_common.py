@@ -21,6 +21,7 @@ from rangekit_cli._options import (
     format_choice,
     note,
     output_option,
+    shown_default,
     verbosity_options,
     warn,
 )
@@ -67,7 +68,7 @@ def gate_options(library_default: float | None, per: str = ""):
             default=None,
             metavar="P",
             help="Innovation gate probability in (0, 1): measurements beyond this "
-            f"chi-square quantile are rejected [{shown}].",
+            f"chi-square quantile are rejected {shown_default(shown)}.",
         )(f)
 
     return deco
@@ -83,7 +84,7 @@ def gate_value(gate: float | None, no_gate: bool | None) -> dict:
 
 
 def rig_option(help: str):
-    """--rig RIG.json (docs/rigs.md)."""
+    """--rig RIG.json (rigs.md of the documentation)."""
     return click.option(
         "--rig", type=click.Path(dir_okay=True), default=None, metavar="RIG.json", help=help
     )
@@ -99,7 +100,7 @@ def initial_pose_option(help: str):
 def output_options(f):
     """--format csv|json|table, -o/--output, -q/--quiet, -v/--verbose, --debug: every
     track subcommand writes a track, a summary (dropped by --quiet) and its warnings."""
-    return format_choice(("csv", "json", "table"), "csv")(
+    return format_choice(("table", "json", "csv"), "csv")(
         output_option(verbosity_options(debug_option(f)))
     )
 

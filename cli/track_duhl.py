@@ -5,7 +5,7 @@ from __future__ import annotations
 import dataclasses
 
 import click
-from rangekit_cli._options import FiniteRange
+from rangekit_cli._options import FiniteRange, doc_page, shown_default
 from rangekit_cli.track_common import (
     gate_options,
     gate_value,
@@ -37,11 +37,11 @@ def duhl_options(f):
             default=None,
             metavar="FILE",
             help="Beacon file, the ceiling transmitters' ids and positions (JSON, "
-            "docs/formats.md); or --rig.",
+            f"{doc_page('formats.md')}); or --rig.",
         ),
         rig_option(
-            "Rig file (docs/rigs.md) instead of --beacons: Kim & Kim's three receivers on a "
-            "circle; its anchors are the transmitters."
+            f"Rig file ({doc_page('rigs.md')}) instead of --beacons: Kim & Kim's three "
+            "receivers on a circle; its anchors are the transmitters."
         ),
         initial_pose_option(
             "The robot's pose at the first odometry row (m, m, degrees). Without it the "
@@ -54,7 +54,8 @@ def duhl_options(f):
             default=None,
             metavar="M",
             help="Distance between the drive wheels, m "
-            f"[{_DEFAULTS['wheel_base_m']:g}, a Pioneer P3-DX].",
+            "(the default is a Pioneer P3-DX's, the paper's robot) "
+            f"{shown_default(_DEFAULTS['wheel_base_m'])}.",
         ),
         click.option(
             "--sigma-d",
@@ -62,7 +63,7 @@ def duhl_options(f):
             type=FiniteRange(0.0, None, min_open=True),
             default=None,
             metavar="M",
-            help=f"1-sigma of a measured distance, m [{_DEFAULTS['sigma_d_m']:g}].",
+            help=f"1-sigma of a measured distance, m {shown_default(_DEFAULTS['sigma_d_m'])}.",
         ),
         click.option(
             "--k-v",
@@ -70,7 +71,8 @@ def duhl_options(f):
             type=FiniteRange(0.0, None),
             default=None,
             metavar="M",
-            help=f"Odometry noise, variance k_v |v| / dt per wheel, m [{_DEFAULTS['k_v_m']:g}].",
+            help="Odometry noise, variance k_v |v| / dt per wheel, m "
+            f"{shown_default(_DEFAULTS['k_v_m'])}.",
         ),
         gate_options(_DEFAULTS["gate_prob"]),
         output_options,
@@ -86,7 +88,8 @@ def duhl_cmd(**kw):
     """A differential-drive robot's pose from wheel odometry and ceiling ultrasonic
     transmitters (the DUHL filter of Kim & Kim 2013 §III-IV).
 
-    LOG.csv is a DUHL log of wheel odometry and ultrasonic distances (docs/formats.md).
+    LOG.csv is a DUHL log of wheel odometry and ultrasonic distances (formats.md of the
+    documentation).
     Prints one pose per odometry row, a summary on stderr, then each warning.
 
     \b

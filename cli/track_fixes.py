@@ -25,7 +25,8 @@ from rangekit.localize.deadreckoning import dead_reckon
 def dead_reckoning_cmd(log, smooth, gate, no_gate, fmt, output):
     """A robot's position, velocity and accelerometer bias (Ahn & Yu 2007 §2).
 
-    LOG.csv is an IMU log t_s, ax_mps2, ay_mps2, speed_mps (docs/theory/ahn2007.md).
+    LOG.csv is an IMU log t_s, ax_mps2, ay_mps2, speed_mps (theory/ahn2007.md of the
+    documentation).
     Prints one row per log row as CSV, or JSON with "columns" and "rows".
 
     \b
@@ -65,7 +66,7 @@ def dead_reckoning_cmd(log, smooth, gate, no_gate, fmt, output):
 def lmax_cmd(log, l_max, i_star, fmt, output):
     """A pedestrian's positions from noisy fixes (the l_max filter, Ahn & Yu 2007 §3).
 
-    LOG.csv is a position log t_s, x_m, y_m (docs/theory/ahn2007.md). Prints the
+    LOG.csv is a position log t_s, x_m, y_m (theory/ahn2007.md of the documentation). Prints the
     estimates, one row per fix.
 
     \b

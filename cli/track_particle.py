@@ -6,6 +6,7 @@ import dataclasses
 import math
 
 import click
+from rangekit_cli._options import doc_page, shown_default
 from rangekit_cli.track_common import log_argument, output_options, rig_option, write_track
 
 from rangekit.localize.particle import (
@@ -29,14 +30,14 @@ _MOUNTS_DEG = ",".join(f"{math.degrees(a):g}" for a in _DEFAULTS["mount_angles_r
     type=click.Path(dir_okay=True),
     default=None,
     metavar="PLAN.json",
-    help="The floor plan (docs/floorplan.md); needed by --mode model and ranging.",
+    help=f"The floor plan ({doc_page('floorplan.md')}); needed by --mode model and ranging.",
 )
 @click.option(
     "--ranges",
     type=click.Path(dir_okay=True),
     default=None,
     metavar="RANGES.csv",
-    help="Range readings t_s,sensor,range_m (empty = no echo; docs/formats.md).",
+    help=f"Range readings t_s,sensor,range_m (empty = no echo; {doc_page('formats.md')}).",
 )
 @click.option(
     "--start",
@@ -50,14 +51,14 @@ _MOUNTS_DEG = ",".join(f"{math.degrees(a):g}" for a in _DEFAULTS["mount_angles_r
     default=None,
     help="The paper's filter (κ motion vectors, wall elimination, merging, eq. (1), keep "
     "the ν best) or sequential importance resampling with the SRF02 error model "
-    f"[{_DEFAULTS['method']}].",
+    f"{shown_default(_DEFAULTS['method'])}.",
 )
 @click.option(
     "--mode",
     type=click.Choice(MODES),
     default=None,
     help="Steps only; steps + floor plan; steps + plan + range readings (Girard 2011 "
-    "Table 1) [ranging with --ranges, else model with --map, else imu].",
+    "Table 1) [default: ranging with --ranges, else model with --map, else imu].",
 )
 @click.option(
     "--particles",
@@ -66,18 +67,19 @@ _MOUNTS_DEG = ",".join(f"{math.degrees(a):g}" for a in _DEFAULTS["mount_angles_r
     metavar="N",
     help=f"ν, the number of particles kept, at most {MAX_PARTICLES:,} (memory), and with "
     f"--method girard at most {MAX_CANDIDATES // _DEFAULTS['kappa']:,} (it holds ν κ = "
-    f"{_DEFAULTS['kappa']} candidate moves) [{_DEFAULTS['n_particles']}, the paper's].",
+    f"{_DEFAULTS['kappa']} candidate moves); the paper's 150 "
+    f"{shown_default(_DEFAULTS['n_particles'])}.",
 )
 @click.option(
     "--mounts",
     default=None,
     metavar="DEG[,DEG...]",
     help="Each range sensor's axis relative to the walking direction, degrees, sensor 0 "
-    f"first [{_MOUNTS_DEG}: back to back, sensor 0 facing left; with --rig: each tag's "
-    "lever-arm direction].",
+    "first; with --rig each tag's lever-arm direction by default "
+    f"{shown_default(_MOUNTS_DEG + ': back to back, sensor 0 facing left')}.",
 )
 @rig_option(
-    "Rig file (docs/rigs.md, odometry 'steps'): range sensor s is the rig's s-th tag, "
+    f"Rig file ({doc_page('rigs.md')}, odometry 'steps'): range sensor s is the rig's s-th tag, "
     "placed at its lever arm and facing away from the body centre (unless --mounts)."
 )
 @click.option(
@@ -85,7 +87,7 @@ _MOUNTS_DEG = ",".join(f"{math.degrees(a):g}" for a in _DEFAULTS["mount_angles_r
     type=click.IntRange(min=0),
     default=None,
     metavar="S",
-    help="Random seed (>= 0); the same seed gives the same track [fresh entropy].",
+    help="Random seed (>= 0); the same seed gives the same track [default: fresh entropy].",
 )
 @output_options
 def particle_cmd(log, steps, map_path, ranges, start, method, mode, particles, mounts, rig,
@@ -93,7 +95,8 @@ def particle_cmd(log, steps, map_path, ranges, start, method, mode, particles, m
     """A walker's position on a floor plan from foot-mounted-IMU step events and
     body-worn SRF02 range finders (the particle filter of Girard 2011 §3.2, or SIR).
 
-    STEPS.csv is a step log t_s,length_m,heading_rad,heading_sigma_rad (docs/formats.md).
+    STEPS.csv is a step log t_s,length_m,heading_rad,heading_sigma_rad (formats.md of the
+    documentation).
     Prints t_s, x_m, y_m, n_particles, spread_m per step, a summary on stderr, and each
     re-initialisation (walker left the map, all particles died) as a warning.
 

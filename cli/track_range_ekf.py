@@ -1,10 +1,10 @@
 """``rangekit track range-ekf``: people from acoustic ranges (Jiang 2018), or a body
-against the fixed anchors of a rig file (``--rig``, docs/rigs.md)."""
+against the fixed anchors of a rig file (``--rig``, rigs.md of the documentation)."""
 
 from __future__ import annotations
 
 import click
-from rangekit_cli._options import FiniteRange
+from rangekit_cli._options import FiniteRange, doc_page, shown_default
 from rangekit_cli.track_common import (
     default,
     gate_options,
@@ -37,7 +37,7 @@ _RIG_ONLY = ("--initial-pose", "--robust", "--steps")
     default=None,
     metavar="FLOAT",
     help="Spectral density of the targets' white acceleration, m²/s³ per axis "
-    f"[{default(track_ranges, 'accel_psd')}, walking people].",
+    f"(the default suits walking people) {shown_default(default(track_ranges, 'accel_psd'))}.",
 )
 @gate_options(default(track_ranges, "gate"), " per range")
 @click.option(
@@ -46,18 +46,19 @@ _RIG_ONLY = ("--initial-pose", "--robust", "--steps")
     type=click.Choice(["physical", "paper"]),
     default=None,
     help="Sign of the robot-pose cross-covariance of Jiang 2018 eq (12): the derived one, "
-    f"or the one the paper prints [{default(track_ranges, 'cross_sign')}].",
+    f"or the one the paper prints {shown_default(default(track_ranges, 'cross_sign'))}.",
 )
 @rig_option(
-    "Track a body against the fixed anchors of this rig file (docs/rigs.md); LOG is then a "
+    f"Track a body against the fixed anchors of this rig file ({doc_page('rigs.md')}); LOG "
+    "is then a "
     "DUHL-format log of odometry and anchor ranges."
 )
 @click.option(
     "--robust",
     type=click.Choice(["huber", "student-t", "none"]),
     default=None,
-    help=f"With --rig: weighting of ranges by their normalised innovation "
-    f"[{default(track_anchors, 'robust')}].",
+    help="With --rig: weighting of ranges by their normalised innovation "
+    f"{shown_default(default(track_anchors, 'robust'))}.",
 )
 @initial_pose_option(
     "With --rig: the body's pose at the first odometry row (m, m, degrees; X,Y for a rig "
@@ -70,23 +71,24 @@ _RIG_ONLY = ("--initial-pose", "--robust", "--steps")
     default=None,
     metavar="STEPS.csv",
     help="With a step-odometry --rig: the step events t_s,length_m,heading_rad,"
-    "heading_sigma_rad (docs/formats.md).",
+    f"heading_sigma_rad ({doc_page('formats.md')}).",
 )
 @output_options
 def range_ekf_cmd(log, smooth, accel_psd, gate, no_gate, cross_sign, rig, robust,
                   initial_pose, steps, fmt, output):  # fmt: skip
     """Positions of people from acoustic ranges (the EKF of Jiang 2018 §4.4).
 
-    LOG.csv is a measurement log (robot poses, relative fixes, ranges; docs/formats.md).
+    LOG.csv is a measurement log (robot poses, relative fixes, ranges; formats.md of the
+    documentation).
     With --rig, LOG.csv is a DUHL-format log of odometry and ranges to the rig's fixed
-    anchors, and the body carrying the rig's tags is tracked (docs/rigs.md). Prints one
+    anchors, and the body carrying the rig's tags is tracked (rigs.md). Prints one
     row per epoch (and target) as CSV, or JSON with "columns" and "rows", then a
     one-line summary on stderr.
 
     \b
     Examples:
       rangekit track range-ekf walk.csv --smooth -o track.csv
-      rangekit track range-ekf --rig docs/rigs/one_tag_square.json robot.csv -o track.csv
+      rangekit track range-ekf walk.csv --format json --no-gate
     """
     given = {
         "--accel-psd": accel_psd is not None,

@@ -207,7 +207,7 @@ def test_help_shows_the_library_defaults():
     cfg = DUHLConfig()
     text = " ".join(ok(run(["track", "duhl", "--help"])).stdout.split())
     for v in (cfg.wheel_base_m, cfg.sigma_d_m, cfg.k_v_m):
-        assert f"[{v:g}" in text, v
+        assert f"[default: {v:g}]" in text, v
 
 
 def test_output_file(tmp_path, log1):

@@ -3,6 +3,7 @@ own options, library defaults in the help, and the deprecated ``--filter NAME`` 
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 import pytest
@@ -55,11 +56,27 @@ def test_help_shows_the_library_defaults():
     from rangekit.localize.range_ekf import track_ranges
 
     text = " ".join(ok(run(["track", "range-ekf", "--help"])).stdout.split())
-    assert f"[{default(track_ranges, 'accel_psd')}," in text
-    assert f"[{default(track_ranges, 'gate'):g} per range]" in text
+    assert f"[default: {default(track_ranges, 'accel_psd')}]" in text
+    assert f"[default: {default(track_ranges, 'gate'):g} per range]" in text
     text = " ".join(ok(run(["track", "particle", "--help"])).stdout.split())
-    assert f"[{ParticleConfig().n_particles}, the paper's]" in text
-    assert f"[{ParticleConfig().method}]" in text
+    assert f"[default: {ParticleConfig().n_particles}]" in text
+    assert f"[default: {ParticleConfig().method}]" in text
+
+
+#: A bracket in a help text: "[default: X]", or click's own (choices, ranges, required).
+_CLICK_BRACKET = re.compile(r"^\[(required|OPTIONS|ARGS|,.*|.*(<=|>=|<|>)x.*|x.*|.*\|.*)\]$")
+
+
+@pytest.mark.parametrize("name", ["", *FILTERS])
+def test_help_follows_the_conventions(name):
+    """Defaults shown one way, no docs/ path (an installed package has none), the same
+    --format choices as every verb (csv stays track's default: it is a data file)."""
+    out = " ".join(ok(run(["track", *name.split(), "--help"])).stdout.split())
+    odd = [b for b in re.findall(r"\[[^\[\]]*\]", out) if not b.startswith("[default: ")]
+    assert [b for b in odd if not _CLICK_BRACKET.match(b)] == []
+    assert "docs/" not in out
+    if name:
+        assert "--format [table|json|csv]" in out and "[default: csv]" in out
 
 
 @pytest.mark.parametrize("name", FILTERS)
