@@ -248,3 +248,14 @@ def test_particle_count_bound(files, walk):
     help_text = " ".join(ok(run(["track", "particle", "--help"])).stdout.split())
     assert f"at most {P.MAX_PARTICLES:,}" in help_text
     assert f"--method girard at most {n - 1:,}" in help_text
+
+
+def test_the_old_form_with_steps_gives_the_same_track(files, walk):
+    new = ["track", "particle", files["steps"], "--map", files["plan"]]
+    new += ["--start", _start(walk), "--seed", 3]
+    old = ["track", "--filter", "particle", "--steps", files["steps"], "--map", files["plan"]]
+    old += ["--start", _start(walk), "--seed", 3]
+    a, b = ok(run(new)), ok(run(old))
+    assert a.stdout == b.stdout
+    assert b.stderr.splitlines() == [*a.stderr.splitlines(), b.stderr.splitlines()[-1]]
+    assert "deprecated" in b.stderr.splitlines()[-1]
