@@ -286,7 +286,7 @@ def fit_channel(
         ``sigma`` includes the model-choice term, module doc) and the chosen models.
     """
     fs = V.sample_rate(fs)
-    x = V.signal_1d("x", x)
+    x = M._check_x("x", x)  # float32 recordings stay float32 (fits read float64 segments)
     res_model = models[0]
     stag_model = models[1] if len(models) > 1 else None
     mf = M.matched_filter(template, block=block)
@@ -296,7 +296,7 @@ def fit_channel(
     lo, hi = (None, None) if search is None else (int(search[0]), int(search[1]))
     m = len(mf.self_response) // 2
     spans = M._window_spans(windows, len(x), lo, hi, m)
-    corr = mf.correlate_spans(x, spans)
+    corr = M._window_correlations(x, template, spans, block=block)
     noise_scale = 1.0 / math.sqrt(mf.energy)
     labels = np.zeros(len(windows), dtype=np.int64) if groups is None else np.asarray(groups)
     if len(labels) != len(windows):
@@ -314,9 +314,8 @@ def fit_channel(
         a, b = (int(v) for v in spans[w])
         if s1 - s0 < 3 or b - a < 3:
             continue
-        cw = corr[w]
+        cw, noise = corr[w]
         l_, h_ = (0, s1 - s0) if lo is None else (lo, hi)
-        noise = M.noise_level(np.abs(cw))
         p = M.first_path(
             cw, lo=l_ - (a - s0), hi=h_ - (a - s0), noise=noise, k_noise=k_noise,
             rel_threshold=rel_threshold, k_detect=k_detect, self_response=mf.self_response,
@@ -437,10 +436,11 @@ def fit_channel(
                     for i, f in zip(idx, pooled, strict=True):
                         chosen[i] = f
     flags = np.zeros(len(rows), dtype=np.int64)
+    d2 = {key: g.d2 for key, g in state.items()}
     for i, f in enumerate(chosen):
         if f is not None:
             g = state[keys[i]]
-            extra = (1.0 - g.w) * g.d2 if stag_model is not None else 0.0
+            extra = (1.0 - g.w) * d2[keys[i]] if stag_model is not None else 0.0
             rows[i][0] = f.onset
             rows[i][1] = math.sqrt(M._fit_sigma(f, fs) ** 2 + extra)
             rows[i][2] = f.snr

@@ -141,8 +141,9 @@ class StaggerModel(ResonatorModel):
         f = float(theta[1])
         return math.pi * f / (a * self.fs) / math.sqrt(2.0), f
 
-    def _element(self, z: np.ndarray, theta: np.ndarray, derivs: bool):
-        """``E(z)`` on ``z`` (= e^{-jw}) and ``d log E / d theta_i``."""
+    def _poly(self, theta: np.ndarray) -> tuple[complex, complex, list[tuple[complex, complex]]]:
+        """``P``'s coefficients ``q1, q2`` at ``theta`` and their derivatives
+        ``(dq1, dq2)`` by each ``theta_i``."""
         a = math.exp(float(theta[0]))
         wc = 2.0 * math.pi * float(theta[1]) / self.fs
         mu = complex(-a, wc)
@@ -151,21 +152,42 @@ class StaggerModel(ResonatorModel):
         ch = cmath.cosh(r)
         sh = 0.5 + nu / 12.0 + nu * nu / 240.0 if abs(r) < 1e-3 else cmath.sinh(r) / (2.0 * r)
         em = cmath.exp(mu)
-        q1, q2 = -2.0 * em * ch, em * em
+        steps = ((-a, 2.0 * nu), (2j * math.pi / self.fs, 0.0), (0.0, a * a), (0.0, 1j * a * a))
+        dq = [(-2.0 * em * (ch * dmu + sh * dnu), 2.0 * em * em * dmu) for dmu, dnu in steps]
+        return -2.0 * em * ch, em * em, dq
+
+    def _element(self, z: np.ndarray, theta: np.ndarray, derivs: bool):
+        """``E(z)`` on ``z`` (= e^{-jw}) and ``d log E / d theta_i`` (rows of an array).
+
+        ``d log E / d theta_i = -(dq1 z / p + dq2 z^2 / p + conj(dq1) z / pb + conj(dq2)
+        z^2 / pb)``: one (4, 4) by (4, n) product of the coefficients and the four ratios.
+        """
+        q1, q2, dq = self._poly(theta)
+        z2, num = _powers(z)
+        p = 1.0 + q1 * z + q2 * z2
+        pb = 1.0 + q1.conjugate() * z + q2.conjugate() * z2
+        e = num / (p * pb)
+        if not derivs:
+            return e, None
+        ratios = np.empty((4, len(z)), dtype=np.complex128)
+        np.divide(z, p, out=ratios[0])
+        np.multiply(ratios[0], z, out=ratios[1])
+        np.divide(z, pb, out=ratios[2])
+        np.multiply(ratios[2], z, out=ratios[3])
+        coef = np.array([(-d1, -d2, -d1.conjugate(), -d2.conjugate()) for d1, d2 in dq])
+        return e, coef @ ratios
+
+    def _element_at(self, z: complex, theta: np.ndarray) -> tuple[complex, list[float]]:
+        """``E(z)`` at one point and ``Re d log E / d theta_i`` there (scalar arithmetic)."""
+        q1, q2, dq = self._poly(theta)
         z2 = z * z
         p = 1.0 + q1 * z + q2 * z2
         pb = 1.0 + q1.conjugate() * z + q2.conjugate() * z2
         e = (1.0 - z2) ** 2 / (p * pb)
-        if not derivs:
-            return e, None
-        out = []
-        steps = ((-a, 2.0 * nu), (2j * math.pi / self.fs, 0.0), (0.0, a * a), (0.0, 1j * a * a))
-        for dmu, dnu in steps:
-            dq1 = -2.0 * em * (ch * dmu + sh * dnu)
-            dq2 = 2.0 * em * em * dmu
-            out.append(
-                -((dq1 * z + dq2 * z2) / p + (dq1.conjugate() * z + dq2.conjugate() * z2) / pb)
-            )
+        out = [
+            -((d1 * z + d2 * z2) / p + (d1.conjugate() * z + d2.conjugate() * z2) / pb).real
+            for d1, d2 in dq
+        ]
         return e, out
 
     def spectrum_t(self, theta: np.ndarray, derivs: bool = False):
@@ -174,19 +196,38 @@ class StaggerModel(ResonatorModel):
         hit = self._cache.get(key)
         if hit is not None:
             return hit
-        zn = np.array([cmath.exp(-2j * math.pi * self.f0_hz / self.fs)])
         e, de = self._element(self._z, theta, derivs)
-        en, den = self._element(zn, theta, derivs)
+        en, den = self._element_at(cmath.exp(-2j * math.pi * self.f0_hz / self.fs), theta)
         m = self.stages
-        s = self._d * (e / abs(en[0])) ** m
+        s = self._d * (e / abs(en)) ** m
         if derivs:
-            out = (s, [m * s * (d - d_n[0].real) for d, d_n in zip(de, den, strict=True)])
+            ds = (m * s) * (de - np.array(den)[:, None])
+            out = (s, list(ds))
         else:
             out = s
         if len(self._cache) > 64:
             self._cache.clear()
         self._cache[key] = out
         return out
+
+
+#: ``z -> (z^2, (1 - z^2)^2)`` of the last grids seen (the model's own and the carrier's).
+_POWERS: dict = {}
+
+
+def _powers(z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``z^2`` and the element's numerator ``(1 - z^2)^2`` on ``z``, kept per grid."""
+    key = (id(z), len(z)) if len(z) > 1 else None
+    hit = _POWERS.get(key) if key is not None else None
+    if hit is not None and hit[0] is z:
+        return hit[1], hit[2]
+    z2 = z * z
+    num = (1.0 - z2) ** 2
+    if key is not None:
+        if len(_POWERS) > 16:
+            _POWERS.clear()
+        _POWERS[key] = (z, z2, num)
+    return z2, num
 
 
 @functools.lru_cache(maxsize=8)
