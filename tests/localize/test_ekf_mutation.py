@@ -168,3 +168,12 @@ def test_rts_checks_every_used_prediction_row_and_not_row_0():
         (a if name == "xs_pred" else b)[k] = np.nan
         with pytest.raises(InvalidParameterError, match=f"{name} contains NaN"):
             rts_smooth(xf, Pf, a, b, Fs)
+
+
+def test_numerical_jacobian_default_step_is_1e_6():
+    def cube(p):
+        return p**3
+
+    default = numerical_jacobian(cube, [0.5])
+    assert np.array_equal(default, numerical_jacobian(cube, [0.5], eps=1e-6))
+    assert not np.array_equal(default, numerical_jacobian(cube, [0.5], eps=2e-6))
