@@ -475,7 +475,7 @@ def synth_oneway(
     a Barker-7 burst on 40 kHz --latency later. Writes OUTPUT (one channel per receiver,
     16-bit PCM, sample 0 = the first trigger), OUTPUT with suffix .json (the geometry,
     each window's Tx and its true distance to every receiver) and OUTPUT with suffix
-    .beacons.json: the beacon file of `locate` and `track --filter duhl` (Tx ids 0, 1, ...
+    .beacons.json: the beacon file of `locate` and `track duhl` (Tx ids 0, 1, ...
     in firing order, z = --ceiling above the receivers).
 
     \b

@@ -558,7 +558,7 @@ def rig_inputs(rig, log, *, name: str | None = None):
 
     DUHL's robot is Kim & Kim 2013's (eq (1)): three receivers at 0°, 120°, 240° on one
     circle around the centre, at one height; the rig must describe that (a one-tag robot
-    or another geometry goes to the range EKF, ``track --filter range-ekf --rig``). The
+    or another geometry goes to the range EKF, ``rangekit track range-ekf --rig``). The
     anchors become the beacons (their heights taken relative to the receivers'); a known
     ``bias_m`` is subtracted from that anchor's distances (DUHL estimates no bias);
     ``sigma_d_m`` is the largest anchor sigma, the wheel base and ``k_v`` those of the
@@ -576,7 +576,7 @@ def rig_inputs(rig, log, *, name: str | None = None):
     if rig.odometry.kind != "differential-drive":
         raise IncompatibleInputError(
             f"{name}: DUHL needs differential-drive odometry (the rig has "
-            f"{rig.odometry.kind!r}); use --filter range-ekf --rig"
+            f"{rig.odometry.kind!r}); use 'rangekit track range-ekf --rig'"
         )
     lv = rig.tag_lever_m
     rad = np.hypot(lv[:, 0], lv[:, 1]) if lv.size else np.zeros(0)
@@ -593,7 +593,7 @@ def rig_inputs(rig, log, *, name: str | None = None):
         raise IncompatibleInputError(
             f"{name}: DUHL needs three receivers at 0, 120, 240 degrees on one circle "
             f"(Kim & Kim 2013 eq (1)); the rig has {rig.n_tags} tag(s) "
-            "elsewhere, use --filter range-ekf --rig"
+            "elsewhere, use 'rangekit track range-ekf --rig'"
         )
     xyz = rig.anchor_xyz_m.copy()
     xyz[:, 2] -= lv[0, 2]

@@ -1,4 +1,4 @@
-"""``rangekit track --filter range-ekf --rig``: fixed anchors from a rig file (issue 18)."""
+"""``rangekit track range-ekf --rig``: fixed anchors from a rig file (issue 18)."""
 
 from __future__ import annotations
 
