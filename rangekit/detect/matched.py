@@ -374,9 +374,14 @@ class MatchedFilter:
         for s0, blocks in self._batches(x, lead, n_out, step):
             X = sf.rfft(blocks, axis=1)
             m = min(n_out - s0, len(blocks) * step)
-            o = out[s0 : s0 + m]
-            o.real = sf.irfft(X * self._gr, n, axis=1)[:, :step].reshape(-1)[:m]
-            o.imag = sf.irfft(X * self._gi, n, axis=1)[:, :step].reshape(-1)[:m]
+            full = m // step  # whole blocks: written row by row, no gathered copy
+            o2 = out[s0 : s0 + full * step].reshape(full, step)
+            for part, g in ((o2.real, self._gr), (o2.imag, self._gi)):
+                y = sf.irfft(X * g, n, axis=1)
+                part[...] = y[:full, :step]
+                if m > full * step:
+                    rest = out[s0 + full * step : s0 + m]
+                    (rest.real if g is self._gr else rest.imag)[...] = y[full, : m - full * step]
         return out
 
     def _envelope_segments(self, x: np.ndarray, n_out: int, lead: int = 0) -> np.ndarray:
