@@ -160,6 +160,7 @@ def _with_rig(log, rig_path, initial_pose, robust, smooth, steps, fmt, output) -
     from rangekit.rig import read_rig
 
     rig = read_rig(rig_path)
+    rig.require_anchors("the anchor EKF (track range-ekf --rig)", source=str(rig_path))
     pose0 = parse_pose(initial_pose, 3 if rig.odometry.kind == "differential-drive" else 2)
     name = str(log)
     dlog = read_duhl_log(log, name=name)

@@ -36,7 +36,7 @@ from typing import Any
 import numpy as np
 
 from rangekit._jsondoc import check_header, json_number
-from rangekit.errors import InputFileError, InvalidParameterError
+from rangekit.errors import IncompatibleInputError, InputFileError, InvalidParameterError
 
 __all__ = [
     "RIG_FORMAT",
@@ -63,7 +63,7 @@ DEFAULT_BIAS_SIGMA_M = 0.05
 
 _TOP = {"format", "version", "units", "name", "notes", "anchors", "body", "odometry", "ranges"}
 _ANCHOR = {"id", "x_m", "y_m", "z_m", "bias_m", "sigma_m", "bias_sigma_m"}
-_TAG = {"id", "x_m", "y_m", "z_m"}
+_TAG = {"id", "x_m", "y_m", "z_m", "axis_deg"}
 _ODO = {
     "differential-drive": {"type", "wheel_base_m", "k_v_m"},
     "steps": {"type", "length_sigma_m", "heading_sigma_rad"},
@@ -123,6 +123,10 @@ class Rig:
     tag_ids : ndarray of int, shape (T,)
     tag_lever_m : ndarray, shape (T, 3)
         Tag positions in the body frame (x forward, y left, z up), m.
+    tag_axis_rad : ndarray, shape (T,)
+        Each tag's pointing axis in the body frame (rad from forward, counter-clockwise:
+        ``axis_deg`` in the file), NaN where the file gives none. Directional sensors (an
+        SRF02 range finder) need it; omnidirectional tags (UWB, microphones) do not.
     odometry : Odometry
     name : str
     """
@@ -137,6 +141,11 @@ class Rig:
     odometry: Odometry
     name: str = ""
     common_bias_sigma_m: float = 0.0
+    tag_axis_rad: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        if self.tag_axis_rad is None:
+            object.__setattr__(self, "tag_axis_rad", np.full(self.tag_ids.size, np.nan))
 
     @property
     def n_anchors(self) -> int:
@@ -145,6 +154,14 @@ class Rig:
     @property
     def n_tags(self) -> int:
         return int(self.tag_ids.size)
+
+    def require_anchors(self, what: str, *, source: str = "the rig") -> None:
+        """Refuse a rig without anchors for ``what`` (a tracker that ranges anchors):
+        :class:`~rangekit.errors.IncompatibleInputError` naming ``source`` (its file)."""
+        if self.n_anchors == 0:
+            raise IncompatibleInputError(
+                f"{source}: {what} ranges fixed anchors, and the rig has none"
+            )
 
     def anchor_index(self, anchor_id: int) -> int:
         """Row of anchor ``anchor_id`` (InvalidParameterError if it is not in the rig)."""
@@ -192,7 +209,10 @@ class Rig:
             "body": {
                 "tags": [
                     {"id": int(i), "x_m": float(p[0]), "y_m": float(p[1]), "z_m": float(p[2])}
-                    for i, p in zip(self.tag_ids, self.tag_lever_m, strict=True)
+                    | ({} if np.isnan(a) else {"axis_deg": float(np.degrees(a))})
+                    for i, p, a in zip(
+                        self.tag_ids, self.tag_lever_m, self.tag_axis_rad, strict=True
+                    )
                 ]
             },
             "odometry": odo,
@@ -227,7 +247,7 @@ def _pos(where: str, v: Any, *, strict: bool = False) -> float:
 
 def _parse(obj: Any) -> Rig:
     check_header(
-        obj, what="a rig file", fmt=RIG_FORMAT, version=RIG_VERSION, body="anchors", allowed=_TOP
+        obj, what="a rig file", fmt=RIG_FORMAT, version=RIG_VERSION, body="body", allowed=_TOP
     )
     for k in ("body", "odometry"):
         if k not in obj:
@@ -243,9 +263,9 @@ def _parse(obj: Any) -> Rig:
         raise InvalidParameterError(f"ranges.estimate_bias={est!r} must be true or false")
     if not est:
         csig = 0.0
-    anchors = obj["anchors"]
-    if not isinstance(anchors, list) or not anchors:
-        raise InvalidParameterError("anchors: must be a non-empty list of anchors")
+    anchors = obj.get("anchors", [])
+    if not isinstance(anchors, list):
+        raise InvalidParameterError("anchors: must be a list of anchors")
     ids, xyz, bias, sig, bsig, seen = [], [], [], [], [], {}
     for i, a in enumerate(anchors):
         w = f"anchors[{i}]"
@@ -265,7 +285,7 @@ def _parse(obj: Any) -> Rig:
         raise InvalidParameterError("body.tags: must be a list of tags")
     if not tags:
         raise InvalidParameterError("body.tags: needs at least one tag")
-    tids, lever, tseen = [], [], {}
+    tids, lever, axis, tseen = [], [], [], {}
     for i, t in enumerate(tags):
         w = f"body.tags[{i}]"
         t = _obj(w, t, _TAG, ("id",))
@@ -275,6 +295,10 @@ def _parse(obj: Any) -> Rig:
         tseen[tid] = i
         tids.append(tid)
         lever.append([json_number(f"{w}.{k}", t.get(k, 0.0)) for k in ("x_m", "y_m", "z_m")])
+        a = json_number(f"{w}.axis_deg", t["axis_deg"]) if "axis_deg" in t else float("nan")
+        if abs(a) > 360.0:
+            raise InvalidParameterError(f"{w}.axis_deg={a!r} must be within -360..360")
+        axis.append(np.radians(a))
     od = obj["odometry"]
     if not isinstance(od, Mapping) or "type" not in od:
         raise InvalidParameterError("odometry: missing key 'type'")
@@ -312,6 +336,7 @@ def _parse(obj: Any) -> Rig:
         odo,
         str(name),
         csig,
+        np.array(axis, dtype=np.float64).reshape(-1),
     )
 
 
@@ -322,7 +347,7 @@ def parse_rig(obj: Any, *, name: str = "<rig>") -> Rig:
     ------
     InvalidParameterError
         ``"{name}: {field}: {problem}"`` for the first problem: a missing or unknown key,
-        another format, version or unit, an empty anchor or tag list, a repeated id, a
+        another format, version or unit, an empty tag list, a repeated id, a
         coordinate that is not a finite number, a sigma or wheel base <= 0, an unknown
         odometry type.
     """

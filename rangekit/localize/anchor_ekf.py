@@ -615,6 +615,7 @@ def track_anchors(
         raise IncompatibleInputError(
             f"{name}: a step log was given but the rig's odometry is {kind!r}, not 'steps'"
         )
+    rig.require_anchors("the anchor EKF (track range-ekf --rig)")
     heading = kind == "differential-drive"
     odo, dist = log.odometry, log.distances
     for k in range(dist.t_s.size):

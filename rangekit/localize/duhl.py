@@ -573,6 +573,7 @@ def rig_inputs(rig, log, *, name: str | None = None):
     from rangekit.io.duhllog import Beacons, DistanceRows, DUHLLog
 
     name = name or rig.name or "the rig"
+    rig.require_anchors("DUHL (track duhl --rig)", source=name)
     if rig.odometry.kind != "differential-drive":
         raise IncompatibleInputError(
             f"{name}: DUHL needs differential-drive odometry (the rig has "

@@ -300,8 +300,9 @@ def rig_config(
 
     Sensor ``s`` of the range log is the rig's ``s``-th tag (``body.tags`` in file order);
     its lever arm (x forward, y left; z is ignored) places the sensor on the body, and its
-    axis points away from the body centre along the lever arm (``atan2(y, x)``: a tag at
-    ``(0, 0.15)`` faces left, +90°) unless ``mount_angles_rad`` gives the axes. The rig's
+    axis is the tag's ``axis_deg`` or else points away from the body centre along the lever
+    arm (``atan2(y, x)``: a tag at ``(0, 0.15)`` faces left, +90°); ``mount_angles_rad``
+    overrides both. The rig's
     anchors are not used (the filter ranges walls, not anchors). With ``method="sir"`` the
     rig's step-length sigma (``odometry.length_sigma_m``) is ``step_sigma_m`` unless given.
 
@@ -334,13 +335,16 @@ def rig_config(
         )
     lever = rig.tag_lever_m[:, :2]
     if mount_angles_rad is None:
-        centre = np.flatnonzero(np.hypot(lever[:, 0], lever[:, 1]) == 0.0)
+        given = np.isfinite(rig.tag_axis_rad)
+        centre = np.flatnonzero(~given & (np.hypot(lever[:, 0], lever[:, 1]) == 0.0))
         if centre.size:
             raise InvalidParameterError(
-                f"{where}: tag {int(rig.tag_ids[centre[0]])} sits at the body centre, so its "
-                "axis cannot be taken from its lever arm; give the sensor axes (--mounts)"
+                f"{where}: tag {int(rig.tag_ids[centre[0]])} sits at the body centre and has "
+                "no axis_deg, so its axis cannot be taken from its lever arm; give axis_deg "
+                "in the rig or the sensor axes (--mounts)"
             )
-        mounts = tuple(float(a) for a in np.arctan2(lever[:, 1], lever[:, 0]))
+        radial = np.arctan2(lever[:, 1], lever[:, 0])
+        mounts = tuple(float(a) for a in np.where(given, rig.tag_axis_rad, radial))
     else:
         mounts = tuple(float(a) for a in mount_angles_rad)
         if len(mounts) != rig.n_tags:

@@ -169,3 +169,21 @@ def test_walker_with_step_events(tmp_path):
     assert_error(run(["track", "range-ekf", "--rig", SQUARE, log, "--steps", steps]),
                  2, "--steps")  # fmt: skip
     assert_error(run(["track", "range-ekf", log, "--steps", steps]), 2, "--rig")
+
+
+def test_a_rig_without_anchors(tmp_path, log):
+    """The particle filter takes one (same track as without --rig); the anchor trackers
+    refuse it, exit 5, naming the rig file."""
+    from rangekit.sim import girard2011
+
+    walk = girard2011.simulate(rng=1)
+    (tmp_path / "plan.json").write_text(json.dumps(walk.plan.to_json()))
+    (tmp_path / "steps.csv").write_text(walk.steps.to_csv())
+    (tmp_path / "ranges.csv").write_text(walk.ranges.to_csv())
+    base = ["track", "particle", tmp_path / "steps.csv", "--map", tmp_path / "plan.json",
+            "--ranges", tmp_path / "ranges.csv", "--start", "1.25,1", "--particles", "300",
+            "--seed", "2"]  # fmt: skip
+    with_rig = ok(run([*base, "--rig", RIGS / "girard2011_walker.json"])).stdout
+    assert with_rig == ok(run(base)).stdout and with_rig.count("\n") > 40
+    bare = RIGS / "girard2011_walker.json"
+    assert_error(run(["track", "range-ekf", "--rig", bare, log]), 5, "girard2011_walker.json")

@@ -126,3 +126,41 @@ def test_the_rig_lever_arms_pay_off(seed):
     assert err["rig"] < 0.2, err  # measured 0.094, 0.097
     assert err["centre"] > 0.16, err  # measured 0.252, 0.224
     assert err["rig"] < 0.6 * err["centre"], err
+
+
+# --- sensor axes in the rig file; rigs without anchors --------------------------------------
+
+GIRARD_RIG = (
+    __import__("pathlib").Path(__file__).parents[2] / "docs" / "rigs" / "girard2011_walker.json"
+)
+
+
+def test_axis_deg_sets_the_sensor_axis_and_round_trips():
+    doc = _rig([(0.0, 0.15), (0.2, 0.0)]).to_json()
+    doc["body"]["tags"][0]["axis_deg"] = 45.0
+    rig = parse_rig(doc, name="rig.json")
+    np.testing.assert_allclose(np.degrees(rig.tag_axis_rad[:1]), [45.0])
+    assert np.isnan(rig.tag_axis_rad[1])
+    cfg = P.rig_config(rig)  # tag 1 from axis_deg, tag 2 along its lever arm (forward)
+    np.testing.assert_allclose(np.degrees(cfg.mount_angles_rad), [45.0, 0.0])
+    again = parse_rig(rig.to_json(), name="rig.json")
+    np.testing.assert_allclose(again.tag_axis_rad[:1], rig.tag_axis_rad[:1])
+    doc["body"]["tags"][0]["axis_deg"] = 400.0
+    with pytest.raises(InvalidParameterError, match=r"body.tags\[0\].axis_deg=400.0"):
+        parse_rig(doc, name="rig.json")
+
+
+def test_shipped_girard_rig_is_the_default_particle_setup():
+    """No anchors (the filter ranges walls), sensors at the centre facing +-90 deg: the
+    particle filter's default mounts, so --rig reproduces the run without it."""
+    from rangekit.errors import IncompatibleInputError
+    from rangekit.rig import read_rig
+
+    rig = read_rig(GIRARD_RIG)
+    assert rig.n_anchors == 0 and rig.n_tags == 2
+    cfg = P.rig_config(rig)
+    default = P.ParticleConfig()
+    np.testing.assert_allclose(cfg.mount_angles_rad, default.mount_angles_rad, atol=1e-15)
+    assert cfg.lever_arms_m == ((0.0, 0.0), (0.0, 0.0))
+    with pytest.raises(IncompatibleInputError, match="ranges fixed anchors, and the rig has none"):
+        rig.require_anchors("the anchor EKF")

@@ -73,7 +73,7 @@ def _edit(path, value):
         (("anchors", 1, "id"), 1, "anchors[1].id=1 repeats anchors[0].id"),
         (("anchors", 0, "sigma_m"), 0, "anchors[0].sigma_m=0 must be > 0"),
         (("anchors", 0, "colour"), "red", "anchors[0]: unknown key 'colour'"),
-        (("anchors",), [], "anchors: must be a non-empty list"),
+        (("anchors",), {}, "anchors: must be a list of anchors"),
         (("body", "tags"), [], "body.tags: needs at least one tag"),
         (("body", "tags", 0, "x_m"), float("nan"), "body.tags[0].x_m=nan must be finite"),
         (("odometry", "type"), "legs", "odometry.type='legs' must be one of"),
