@@ -61,3 +61,23 @@ def test_stage_two_uses_the_recording_from_its_first_sample():
     assert abs(fit.onset - 26.3) < 0.5
     assert abs((padded.onset - pad) - fit.onset) < 1e-9
     assert abs(padded.sigma - fit.sigma) < 1e-9 * fit.sigma
+
+
+def test_an_edge_with_statistic_20_is_an_edge_by_default():
+    """``f_min`` = 15: a faint first path (statistic 20.5, measured, of a top 38) counts;
+    with 30 the later burst would be taken. Noisy: the onset itself is 8 samples off."""
+    x = _burst(1000.3, 2400, 0.5) + _burst(1600.7, 2400)
+    x = x + 0.3 * np.random.default_rng(5).standard_normal(len(x))
+    kw = {"fs": FS, "beep": BEEP, "lo": 950, "hi": 1650}
+    f = edge_statistic(x, **kw)
+    assert 15.0 < f[:300].max() < 30.0 and f.max() < 150.0  # frac * top is below f_min
+    default = fit_edge(x, **kw)
+    assert default == fit_edge(x, **kw, f_min=15.0) and abs(default.onset - 1000.3) < 12
+    assert abs(fit_edge(x, **kw, f_min=30.0).onset - 1600.7) < 12
+
+
+def test_refine_onset_fits_no_dc_by_default():
+    x = _burst(500.3, 2000) + 0.3 + 0.01 * np.random.default_rng(4).standard_normal(2000)
+    plain = refine_onset(x, fs=FS, beep=BEEP, a=500, dc=False)
+    assert refine_onset(x, fs=FS, beep=BEEP, a=500) == plain
+    assert refine_onset(x, fs=FS, beep=BEEP, a=500, dc=True) != plain
