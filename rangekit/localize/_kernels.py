@@ -1,9 +1,10 @@
-"""Compiled loop of the range-tracking EKF (Jiang 2018 §4.4), one call for a whole log.
+"""Compiled loops of the range-tracking EKF (Jiang 2018 §4.4), one call for a whole log.
 
 Private. :mod:`rangekit.localize.range_ekf` flattens a measurement log into the arrays
-below and calls :func:`run_range_ekf`; the same module has a plain-numpy reference built
-on :func:`rangekit.localize.ekf.update`, and ``tests/localize/test_range_ekf.py`` checks
-the two agree to rounding.
+below and calls :func:`run_range_ekf` (one hypothesis) or :func:`run_bank` (the
+hypothesis bank with both mirror branches); the same module has a plain-numpy reference
+built on :func:`rangekit.localize.ekf.update` and a Python-driven bank, and
+``tests/localize/test_range_ekf.py`` checks they agree to rounding.
 
 State: for each of N targets ``[x, y, vx, vy]`` (d = 4N), constant velocity driven by
 white acceleration of spectral density ``q[t]`` (m²/s³ per axis) for target t.
@@ -145,7 +146,7 @@ def _chol_inplace(S, m):  # pragma: no cover - compiled
 @njit(cache=True)
 def epoch_update(
     x, P, xlin, n_iter, kind, a, b, val, var, cov, lo, hi, rx, ry, Pr, sign, thr,
-    gate_kind_max, acc, nis_out, inno_out,
+    gate_kind_max, acc, nis_out, inno_out, mean_only=False,
 ):  # pragma: no cover - compiled  # fmt: skip
     """One joint (iterated) EKF update with the rows lo..hi-1, after per-row gating.
 
@@ -160,7 +161,8 @@ def epoch_update(
     the kept rows update jointly, the covariance in Joseph form with the last ``H``.
     Writes ``acc`` (kept?), ``nis_out`` (marginal NIS) and ``inno_out`` (innovation) for
     every row; returns the log-likelihood ``log N(y; 0, S)`` at the last linearisation
-    point (rejected rows count as NIS = thr).
+    point (rejected rows count as NIS = thr). ``mean_only``: ``P`` is left as it is
+    (the caller wants a linearisation point, not a posterior).
     """
     d = x.size
     m = hi - lo
@@ -278,6 +280,10 @@ def epoch_update(
             break
         for j in range(d):
             xl[j] = xnew[j]
+    if mean_only:  # the caller needs the posterior mean only (a linearisation point)
+        for j in range(d):
+            x[j] = xnew[j]
+        return ll
     # R = S - H P H^T on the kept rows (needed for the Joseph form)
     Rk = np.empty((mk, mk))
     for p in range(mk):
@@ -357,10 +363,9 @@ def epoch_step(
     while lo + n_fix < hi and kind[lo + n_fix] >= 2:
         n_fix += 1
     if n_iter > 1 and 0 < n_fix < hi - lo:  # (n_iter = 1: the plain EKF, at the prior)
-        Pl = Pp.copy()
         epoch_update(
-            xlin, Pl, xp, 1, kind, a, b, val, var, cov, lo, lo + n_fix, rx, ry, robot_P[e],
-            sign, np.inf, gate_kind_max, acc, nis, inno,
+            xlin, Pp, xp, 1, kind, a, b, val, var, cov, lo, lo + n_fix, rx, ry, robot_P[e],
+            sign, np.inf, gate_kind_max, acc, nis, inno, True,
         )  # fmt: skip
     o = int(mirror[0])
     if o >= 0:
@@ -440,3 +445,197 @@ def run_range_ekf(
         Pps[e] = Pp
         xs[e] = x
         Ps[e] = P
+
+
+@njit(cache=True)
+def mirror_d2(xp, Pp, line):  # pragma: no cover - compiled
+    """Squared Mahalanobis distance, in the prediction's position covariance of the
+    target of ``line``, from the predicted position to its mirror image."""
+    o = int(line[0])
+    ux, uy = line[3], line[4]
+    dx, dy = xp[o] - line[1], xp[o + 1] - line[2]
+    cr = 2.0 * (ux * dy - uy * dx)  # mirror - position = -cr * (-uy, ux)
+    vx, vy = cr * uy, -cr * ux
+    a, b, c = Pp[o, o], Pp[o, o + 1], Pp[o + 1, o + 1]
+    det = a * c - b * b
+    if not det > 0.0:
+        return 0.0
+    return (c * vx * vx - 2.0 * b * vx * vy + a * vy * vy) / det
+
+
+@njit(cache=True)
+def _same_mode(x1, x2, n_t, merge_m, merge_mps):  # pragma: no cover - compiled
+    """Every target's position within merge_m and velocity within merge_mps."""
+    for t in range(n_t):
+        o = 4 * t
+        if math.hypot(x1[o] - x2[o], x1[o + 1] - x2[o + 1]) >= merge_m:
+            return False
+        if math.hypot(x1[o + 2] - x2[o + 2], x1[o + 3] - x2[o + 3]) >= merge_mps:
+            return False
+    return True
+
+
+@njit(cache=True)
+def run_bank(
+    X0, P0, e0, t_s, start, kind, a, b, val, var, cov, robot_xy, robot_P, q, sign, thr,
+    gate_kind_max, relock, sigma_v0, n_iter, lines, n_lines, n_keep, merge_m, merge_mps,
+    skip_d2, acc, nis, inno, hx, hP, hxp, hPp, hparent, hll, hcum, hmirror, hnre, hcount,
+    hacc, hnis, mx, mP, mpb,
+):  # pragma: no cover - compiled  # fmt: skip
+    """The hypothesis bank of :func:`rangekit.localize.range_ekf._run_bank` in one call.
+
+    Epochs ``e0 + k``, k = 0..n-1. Each hypothesis is stepped (:func:`epoch_step`) once
+    per line of ``lines[k, :n_lines[k]]`` (line 0: the prediction itself, the others
+    the mirror lines; a mirror line is skipped when its image lies more than
+    ``sqrt(skip_d2)`` prediction sigmas away, :func:`mirror_d2`), candidates are ordered
+    by cumulative log-likelihood (stable), those reaching the same mode as a better one
+    (:func:`_same_mode`) add their weight to it (log-sum-exp), the ``n_keep`` heaviest
+    survive, sorted by weight. Fills, per
+    epoch and kept slot: the history ``hx, hP, hxp, hPp`` (posterior, prediction),
+    ``hparent`` (slot at the epoch before), ``hll`` (the epoch's log-likelihood),
+    ``hcum``, ``hmirror`` (updated on a mirror line), ``hnre``, ``hacc``/``hnis`` (the
+    epoch's rows), ``hcount`` (slots used) and the bank as a mixture ``mx, mP`` with the
+    branch probability ``mpb`` of every target (of the heaviest hypothesis: the weight
+    within max(1 m, 3 sigma) of it).
+    """
+    n = hx.shape[0]
+    d = X0.shape[1]
+    n_t = d // 4
+    n_h = X0.shape[0]
+    max_c = max(n_h, n_keep) * lines.shape[1]
+    bx = X0.copy()
+    bP = P0.copy()
+    bstreak = np.zeros((max(n_h, n_keep), n_t), dtype=np.int64)
+    bcum = np.zeros(max(n_h, n_keep))
+    nb = n_h
+    cx = np.empty((max_c, d))
+    cP = np.empty((max_c, d, d))
+    cxp = np.empty((max_c, d))
+    cPp = np.empty((max_c, d, d))
+    cstreak = np.empty((max_c, n_t), dtype=np.int64)
+    ccum = np.empty(max_c)
+    cll = np.empty(max_c)
+    cnre = np.empty(max_c, dtype=np.int64)
+    cpar = np.empty(max_c, dtype=np.int64)
+    cmir = np.empty(max_c, dtype=np.bool_)
+    n_rows = hacc.shape[2]
+    cacc = np.empty((max_c, n_rows), dtype=np.bool_)
+    cnis = np.empty((max_c, n_rows))
+    kept = np.empty(n_keep, dtype=np.int64)
+    kcum = np.empty(n_keep)
+    x = np.empty(d)
+    P = np.empty((d, d))
+    xp = np.empty(d)
+    Pp = np.empty((d, d))
+    t = t_s[e0]
+    for k in range(n):
+        e = e0 + k
+        dt = t_s[e] - t
+        t = t_s[e]
+        lo, hi = start[e], start[e + 1]
+        nc = 0
+        for h in range(nb):
+            c_direct = nc
+            for li in range(n_lines[k]):
+                if li > 0 and mirror_d2(cxp[c_direct], cPp[c_direct], lines[k, li]) > skip_d2:
+                    continue  # that branch's weight is below exp(-skip_d2 / 2) of this one
+                x[:] = bx[h]
+                P[:, :] = bP[h]
+                cstreak[nc] = bstreak[h]
+                ll, n_re = epoch_step(
+                    x, P, xp, Pp, dt, e, start, kind, a, b, val, var, cov, robot_xy,
+                    robot_P, q, sign, thr, gate_kind_max, relock, sigma_v0, cstreak[nc],
+                    acc, nis, inno, n_iter, lines[k, li],
+                )  # fmt: skip
+                cx[nc] = x
+                cP[nc] = P
+                cxp[nc] = xp
+                cPp[nc] = Pp
+                cll[nc] = ll
+                ccum[nc] = bcum[h] + ll
+                cnre[nc] = n_re
+                cpar[nc] = h if k > 0 else -1
+                cmir[nc] = li > 0
+                for r in range(hi - lo):
+                    cacc[nc, r] = acc[lo + r]
+                    cnis[nc, r] = nis[lo + r]
+                nc += 1
+        order = np.argsort(-ccum[:nc], kind="mergesort")
+        nk = 0
+        for c in order:
+            merged = False
+            for i in range(nk):
+                if _same_mode(cx[c], cx[kept[i]], n_t, merge_m, merge_mps):
+                    hi_, lo_ = max(kcum[i], ccum[c]), min(kcum[i], ccum[c])
+                    kcum[i] = hi_ + math.log1p(math.exp(lo_ - hi_))
+                    merged = True
+                    break
+            if not merged and nk < n_keep:
+                kept[nk] = c
+                kcum[nk] = ccum[c]
+                nk += 1
+        srt = np.argsort(-kcum[:nk], kind="mergesort")
+        hcount[k] = nk
+        for s in range(nk):
+            c = kept[srt[s]]
+            hx[k, s] = cx[c]
+            hP[k, s] = cP[c]
+            hxp[k, s] = cxp[c]
+            hPp[k, s] = cPp[c]
+            hparent[k, s] = cpar[c]
+            hll[k, s] = cll[c]
+            hcum[k, s] = kcum[srt[s]]
+            hmirror[k, s] = cmir[c]
+            hnre[k, s] = cnre[c]
+            for r in range(hi - lo):
+                hacc[k, s, r] = cacc[c, r]
+                hnis[k, s, r] = cnis[c, r]
+        for s in range(nk):
+            bx[s] = hx[k, s]
+            bP[s] = hP[k, s]
+            bstreak[s] = cstreak[kept[srt[s]]]
+            bcum[s] = hcum[k, s]
+        nb = nk
+        _mixture_into(hx[k], hP[k], hcum[k], nk, n_t, mx[k], mP[k], mpb[k])
+
+
+@njit(cache=True)
+def _mixture_into(X, P, cum, nk, n_t, xbar, Pbar, pb):  # pragma: no cover - compiled
+    """The bank's moments as a Gaussian mixture and the branch probability of the
+    heaviest hypothesis (slot 0); :func:`rangekit.localize.range_ekf._mixture`."""
+    d = X.shape[1]
+    w = np.empty(nk)
+    top = cum[0]
+    for i in range(nk):
+        top = max(top, cum[i])
+    tot = 0.0
+    for i in range(nk):
+        w[i] = math.exp(cum[i] - top)
+        tot += w[i]
+    for i in range(nk):
+        w[i] /= tot
+    for j in range(d):
+        s = 0.0
+        for i in range(nk):
+            s += w[i] * X[i, j]
+        xbar[j] = s
+    for r in range(d):
+        for c in range(d):
+            s = 0.0
+            for i in range(nk):
+                s += w[i] * (P[i, r, c] + (X[i, r] - xbar[r]) * (X[i, c] - xbar[c]))
+            Pbar[r, c] = s
+    for r in range(d):
+        for c in range(r + 1, d):
+            v = 0.5 * (Pbar[r, c] + Pbar[c, r])
+            Pbar[r, c] = v
+            Pbar[c, r] = v
+    for t in range(n_t):
+        o = 4 * t
+        sig = math.sqrt(max(0.5 * (P[0, o, o] + P[0, o + 1, o + 1]), 0.0))
+        rad = max(1.0, 3.0 * sig)
+        s = 0.0
+        for i in range(nk):
+            if math.hypot(X[i, o] - X[0, o], X[i, o + 1] - X[0, o + 1]) <= rad:
+                s += w[i]
+        pb[t] = s

@@ -92,12 +92,15 @@ __all__ = [
 KIND_ROBOT_RANGE, KIND_PAIR_RANGE, KIND_FIX_X, KIND_FIX_Y = 0, 1, 2, 3
 
 
+#: Engines of :func:`track_ranges`.
+ENGINES = ("compiled", "python", "numpy")
+
 #: Largest coordinate or range (m) a log may hold; variances up to its square.
 MAX_COORD_M = 1e6
 
 #: The iterated update stops when a step moves the state by less than this (squared
-#: norm, m²; the compiled kernel reads it from here).
-ITER_TOL_M2 = 1e-12
+#: norm, m² and (m/s)²: 1 mm; the compiled kernel reads it from here).
+ITER_TOL_M2 = 1e-6
 
 
 def cv_transition(dt: float, n_targets: int, accel_psd) -> tuple[np.ndarray, np.ndarray]:
@@ -545,6 +548,20 @@ def _mirror_lines(ep: _Epochs, e: int, n_t: int) -> list[np.ndarray]:
     return out
 
 
+def _mirror_d2(xp: np.ndarray, Pp: np.ndarray, line: np.ndarray) -> float:
+    """Reference of :func:`rangekit.localize._kernels.mirror_d2`: the squared Mahalanobis
+    distance (prediction's position covariance) from the predicted position of the
+    line's target to its mirror image."""
+    o = int(line[0])
+    p0, u = line[1:3], line[3:5]
+    dv = xp[o : o + 2] - p0
+    v = p0 + 2 * (dv @ u) * u - dv - xp[o : o + 2]
+    C = Pp[o : o + 2, o : o + 2]
+    if not np.linalg.det(C) > 0:
+        return 0.0
+    return float(v @ np.linalg.solve(C, v))
+
+
 @dataclass
 class _Hyp:
     x: np.ndarray
@@ -560,6 +577,11 @@ class _Hyp:
 #: on positions alone ended the other branch there.
 MERGE_M = 0.25
 MERGE_MPS = 0.25
+
+#: A mirror branch whose image lies more than sqrt(this) prediction sigmas from the
+#: predicted position is not updated: its weight would be below exp(-50) of the direct
+#: branch's, nothing it could change is above rounding.
+MIRROR_SKIP_D2 = 100.0
 
 
 def _run_bank(c: _Ctx, e0: int, hyps, step, *, n_keep: int, mirror: bool):
@@ -595,7 +617,10 @@ def _run_bank(c: _Ctx, e0: int, hyps, step, *, n_keep: int, mirror: bool):
         cands = []
         lines = [NO_MIRROR] + (_mirror_lines(ep, e, n_t) if mirror else [])
         for h in bank:
+            direct = len(cands)  # where this hypothesis's direct child will be
             for i_line, line in enumerate(lines):
+                if i_line > 0 and _mirror_d2(*cands[direct][3:5], line) > MIRROR_SKIP_D2:
+                    continue  # that branch's weight would be about exp(-MIRROR_SKIP_D2 / 2)
                 streak = h.streak.copy()
                 x, P, xp, Pp, ll, n_re, acc, nis = step(c, h.x, h.P, streak, dt, e, line)
                 cum = h.cum + ll
@@ -652,11 +677,61 @@ def _run_bank(c: _Ctx, e0: int, hyps, step, *, n_keep: int, mirror: bool):
     return xs, Ps, ll, acc_rows, nis_rows, smooth_in, n_reinit, mixed
 
 
+def _run_bank_compiled(c: _Ctx, e0: int, hyps, *, n_keep: int, mirror: bool):
+    """:func:`_run_bank` in one compiled call (:func:`rangekit.localize._kernels.run_bank`);
+    the same results to rounding (``tests/localize/test_range_ekf.py``)."""
+    from rangekit.localize._kernels import run_bank
+
+    ep = c.ep
+    n = ep.t_s.size - e0
+    n_t = hyps[0][0].size // 4
+    d = 4 * n_t
+    per = [[NO_MIRROR] + (_mirror_lines(ep, e0 + k, n_t) if mirror else []) for k in range(n)]
+    n_lines = np.array([len(p) for p in per], dtype=np.int64)
+    lines = np.zeros((n, int(n_lines.max()), 5))
+    for k, p in enumerate(per):
+        lines[k, : len(p)] = p
+    K = n_keep
+    m_max = int(np.max(np.diff(ep.start[e0:])))
+    hx, hxp = np.empty((n, K, d)), np.empty((n, K, d))
+    hP, hPp = np.empty((n, K, d, d)), np.empty((n, K, d, d))
+    hparent = np.zeros((n, K), dtype=np.int64)
+    hll, hcum = np.empty((n, K)), np.empty((n, K))
+    hmirror = np.zeros((n, K), dtype=np.bool_)
+    hnre = np.zeros((n, K), dtype=np.int64)
+    hcount = np.zeros(n, dtype=np.int64)
+    hacc = np.zeros((n, K, m_max), dtype=np.bool_)
+    hnis = np.full((n, K, m_max), np.nan)
+    mx, mP, mpb = np.empty((n, d)), np.empty((n, d, d)), np.empty((n, n_t))
+    X0 = np.ascontiguousarray(np.stack([h[0] for h in hyps]))
+    P0 = np.ascontiguousarray(np.stack([h[1] for h in hyps]))
+    run_bank(
+        X0, P0, e0, ep.t_s, ep.start, ep.kind, c.a0, ep.b, ep.val, ep.var, ep.cov,
+        ep.robot_xy, ep.robot_P, c.q, c.sign, c.thr, KIND_PAIR_RANGE, c.relock, c.sigma_v0,
+        c.n_iter, lines, n_lines, K, MERGE_M, MERGE_MPS, MIRROR_SKIP_D2, c.acc, c.nis, c.inno,
+        hx, hP, hxp,
+        hPp, hparent, hll, hcum, hmirror, hnre, hcount, hacc, hnis, mx, mP, mpb,
+    )  # fmt: skip
+    lineage = np.empty(n, dtype=np.int64)
+    slot = 0
+    for k in range(n - 1, -1, -1):
+        lineage[k] = slot
+        slot = hparent[k, slot]
+    m = np.diff(ep.start[e0:])
+    acc_rows = [hacc[k, 0, : m[k]].copy() for k in range(n)]
+    nis_rows = [hnis[k, 0, : m[k]].copy() for k in range(n)]
+    kk = np.arange(n)
+    smooth_in = (hx[kk, lineage], hP[kk, lineage], hxp[kk, lineage], hPp[kk, lineage],
+                 hmirror[kk, lineage])  # fmt: skip
+    return (hx[:, 0].copy(), hP[:, 0].copy(), hll[:, 0].copy(), acc_rows, nis_rows, smooth_in,
+            hnre[:, 0].copy(), (mx, mP, mpb))  # fmt: skip
+
+
 def _mixture(kept, rep: int, n_t: int):
     """Moments of the bank as a Gaussian mixture, and the branch probability.
 
-    Weights ``w_i ∝ exp(L_i)`` from the cumulative log-likelihoods (mirror priors
-    included). Returns the mixture mean and covariance ``Σ w_i (P_i + (x_i − x̄)(x_i −
+    Weights ``w_i ∝ exp(L_i)`` from the cumulative log-likelihoods (merged modes
+    pooled). Returns the mixture mean and covariance ``Σ w_i (P_i + (x_i − x̄)(x_i −
     x̄)ᵀ)`` and, per target, the weight of the hypotheses whose position of that target
     lies within ``max(1 m, 3σ)`` of the reported hypothesis's: the probability that the
     target is where the filter says and not on another branch (its mirror image).
@@ -739,7 +814,7 @@ class RangeTrack:
         Elsewhere it reported another branch (e.g. the mirror image the later data
         ruled out), and ``P`` and ``P_smooth`` condition on different hypotheses.
     n_line_mirrors : int
-        Mirror jumps along the smoothed lineage.
+        Epochs at which the smoothed lineage was updated on a mirror branch.
     x_mix, P_mix : ndarray
         The bank's hypotheses as a Gaussian mixture at each epoch (causal): weights from
         the cumulative likelihoods, mean and covariance with the spread of the means.
@@ -858,9 +933,12 @@ def track_ranges(
         Gauss-Newton iterations of each update (the iterated EKF; >= 1, default 5),
         started where the epoch's fixes put the fixed targets. 1: the plain EKF,
         linearised at the prediction.
-    engine : {"compiled", "numpy"}
-        The numba loop (default) or the plain-numpy reference built on
-        :func:`rangekit.localize.ekf.update` (slow; for checking).
+    engine : {"compiled", "python", "numpy"}
+        ``"compiled"`` (default): the whole bank in one numba call
+        (:func:`rangekit.localize._kernels.run_bank`); ``"python"``: the bank driven from
+        Python, one compiled epoch step per hypothesis and branch; ``"numpy"``: the same
+        in plain numpy on :func:`rangekit.localize.ekf.update` (slow; the reference).
+        All three give the same track to rounding.
     name : str
         How the log is named in error messages.
 
@@ -886,8 +964,8 @@ def track_ranges(
     relock = positive_int("relock", relock)
     n_keep = positive_int("n_keep", n_keep)
     iterations = positive_int("iterations", iterations)
-    if engine not in ("compiled", "numpy"):
-        raise InvalidParameterError(f"engine={engine!r} must be 'compiled' or 'numpy'")
+    if engine not in ENGINES:
+        raise InvalidParameterError(f"engine={engine!r} must be one of {', '.join(ENGINES)}")
     ep = _epochs(log, name)
     n_t = log.n_targets
     if len(q_list) not in (1, n_t):
@@ -916,11 +994,15 @@ def track_ranges(
     ctx = _Ctx(ep, q, sign, thr, relock, sigma_v0, iterations)
     if engine == "compiled" and len(hyps) == 1 and not mirror:
         xs, Ps, ll, acc_rows, nis_rows, smooth_in, n_reinit, mixed = _run_single(ctx, e0, *hyps[0])
-    else:
-        step = _step_compiled if engine == "compiled" else _step_numpy
-        xs, Ps, ll, acc_rows, nis_rows, smooth_in, n_reinit, mixed = _run_bank(
-            ctx, e0, hyps, step, n_keep=max(n_keep, 1), mirror=mirror
+    elif engine == "compiled":
+        xs, Ps, ll, acc_rows, nis_rows, smooth_in, n_reinit, mixed = _run_bank_compiled(
+            ctx, e0, hyps, n_keep=n_keep, mirror=mirror
         )
+    else:
+        xs, Ps, ll, acc_rows, nis_rows, smooth_in, n_reinit, mixed = _run_bank(
+            ctx, e0, hyps, _step_numpy if engine == "numpy" else _step_compiled,
+            n_keep=n_keep, mirror=mirror,
+        )  # fmt: skip
     if not (np.all(np.isfinite(xs)) and np.all(np.isfinite(Ps))):
         k_bad = int(np.argmax(~np.all(np.isfinite(xs), axis=1)))
         raise IncompatibleInputError(

@@ -397,3 +397,21 @@ def test_mismatch_walks_draw_ranges_from_another_law():
     assert 0.9 < skew(err) < 3.0 and np.max(err) > 0.5
     a, b = simulate(rng=4), simulate(rng=4, range_bias_m=0.0, outlier_prob=0.0)
     assert np.array_equal(a.log.ranges.range_m, b.log.ranges.range_m)
+
+
+def test_compiled_bank_equals_the_python_bank_and_the_numpy_reference():
+    """Issue 20 item 5: the whole bank in one numba call (``engine="compiled"``) gives
+    the track of the Python-driven bank (``"python"``) and of the numpy reference to
+    rounding: hypotheses, weights after merging, lineage, mixture, branch probability."""
+    from rangekit.sim.jiang2018 import paper_settings, simulate
+
+    run = simulate(**paper_settings("lab_mismatch"), speed_mps=0.8, rng=7)
+    trk = {e: track_ranges(run.log, smooth=True, engine=e) for e in ("compiled", "python", "numpy")}
+    a = trk["compiled"]
+    assert a.n_line_mirrors > 0  # the lineage went through a mirror branch
+    for e in ("python", "numpy"):
+        b = trk[e]
+        for f in ("x", "P", "x_smooth", "P_smooth", "x_mix", "P_mix", "p_branch", "loglik"):
+            assert np.allclose(getattr(a, f), getattr(b, f), rtol=0, atol=1e-8), (e, f)
+        assert np.array_equal(a.n_reinit, b.n_reinit) and a.n_line_mirrors == b.n_line_mirrors
+        assert [r.t_s for r in a.rejected] == [r.t_s for r in b.rejected]
