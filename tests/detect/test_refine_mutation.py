@@ -76,8 +76,12 @@ def test_an_edge_with_statistic_20_is_an_edge_by_default():
     assert abs(fit_edge(x, **kw, f_min=30.0).onset - 1600.7) < 12
 
 
-def test_refine_onset_fits_no_dc_by_default():
+def test_refine_onset_defaults_are_the_numpy_path_without_dc():
+    """``dc=False`` and ``compiled=False`` by default (the compiled stage 2 equals the numpy
+    one only to rounding, so the default's result is the numpy one exactly)."""
     x = _burst(500.3, 2000) + 0.3 + 0.01 * np.random.default_rng(4).standard_normal(2000)
-    plain = refine_onset(x, fs=FS, beep=BEEP, a=500, dc=False)
+    plain = refine_onset(x, fs=FS, beep=BEEP, a=500, dc=False, compiled=False)
     assert refine_onset(x, fs=FS, beep=BEEP, a=500) == plain
     assert refine_onset(x, fs=FS, beep=BEEP, a=500, dc=True) != plain
+    fast = refine_onset(x, fs=FS, beep=BEEP, a=500, compiled=True)
+    assert abs(fast.onset - plain.onset) < 1e-9  # (differs in the last bits here)
