@@ -34,7 +34,7 @@ import numpy as np
 
 from rangekit.errors import InputFileError, LogFormatError
 
-__all__ = ["Column", "read_table", "write_table"]
+__all__ = ["Column", "read_table", "read_text", "write_table"]
 
 
 @dataclass(frozen=True)
@@ -124,6 +124,23 @@ def read_table(
     if hasattr(source, "read"):
         label = name or getattr(source, "name", "<stream>")
         return _read(source, columns, label, allow_extra)
+    label, text = read_text(source, name=name)
+    return _read(io.StringIO(text, newline=""), columns, label, allow_extra)
+
+
+def read_text(source: str | os.PathLike | IO[str], *, name: str | None = None) -> tuple[str, str]:
+    """``(label, text)`` of a CSV log: a path read through the guarded reader (a regular
+    file, at most ``MAX_TABLE_BYTES``, UTF-8 with or without a BOM), or a text stream.
+
+    Raises
+    ------
+    InputFileError
+        The file cannot be opened (the message names ``name``, default the path).
+    LogFormatError
+        Not UTF-8 text.
+    """
+    if hasattr(source, "read"):
+        return name or getattr(source, "name", "<stream>"), source.read()
     from rangekit.io.guard import MAX_TABLE_BYTES, read_capped
 
     path = Path(source)
@@ -133,10 +150,9 @@ def read_table(
     except InputFileError as e:
         raise InputFileError(str(e).replace(f"'{path}'", repr(label), 1)) from None
     try:
-        text = data.decode("utf-8-sig")
+        return label, data.decode("utf-8-sig")
     except UnicodeDecodeError:
         raise LogFormatError(f"{label}: not a UTF-8 text CSV file") from None
-    return _read(io.StringIO(text, newline=""), columns, label, allow_extra)
 
 
 def _read(fh: IO[str], columns: Mapping[str, Column], name: str, allow_extra: bool):

@@ -20,8 +20,11 @@ distance    ``t_s, tx, d1_m, d2_m, d3_m``: distances (m, >= 0) from transmitter 
 ==========  ==========================================================================
 
 Column header, exactly these eight names (order free, no other columns):
-``t_s,kind,tx,v_right_mps,v_left_mps,d1_m,d2_m,d3_m``. Cells a kind does not use must be
-empty. ``#`` lines are comments. A distance row at the same ``t_s`` as an odometry row
+``t_s,kind,tx,v_right_mps,v_left_mps,d1_m,d2_m,d3_m``, or for a rig with more than three
+tags (``rangekit track range-ekf --rig``) further distance columns ``d4_m, d5_m, ...``
+numbered without gaps (range to tag 4, 5, ...; DUHL's robot has three receivers and
+refuses a log that fills them). Cells a kind does not use must be empty. ``#`` lines are
+comments. A distance row at the same ``t_s`` as an odometry row
 was taken at the pose reached at the end of that odometry interval; :meth:`DUHLLog.to_csv`
 writes odometry rows first at equal times.
 
@@ -52,16 +55,16 @@ from __future__ import annotations
 import io
 import math
 import os
+import re
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import IO, Any
 
 import numpy as np
 
 from rangekit._jsondoc import check_header, json_number
 from rangekit.errors import InputFileError, InvalidParameterError, LogFormatError
-from rangekit.io.csvlog import Column, read_table, write_table
+from rangekit.io.csvlog import Column, read_table, read_text, write_table
 
 __all__ = [
     "BEACON_FORMAT",
@@ -123,7 +126,8 @@ class OdometryRows:
 @dataclass(frozen=True, eq=False)
 class DistanceRows:
     """Ultrasonic distances d^i of eq (3): ``t_s`` (m,), ``tx`` (m,) int64 transmitter ids,
-    ``d_m`` (m, 3) distances to receivers 1-3 in metres, NaN where a receiver missed."""
+    ``d_m`` (m, K) distances to receivers (tags) 1-K in metres, K >= 3 (the ``d{k}_m``
+    columns), NaN where a receiver missed."""
 
     t_s: np.ndarray
     tx: np.ndarray
@@ -184,15 +188,17 @@ class DUHLLog:
         0.2,distance,1,,,2.0,,2.1
         """
         o, d = self.odometry, self.distances
+        n_d = max(3, d.d_m.shape[1] if d.d_m.ndim == 2 else 3)
+        columns = (*LOG_COLUMNS[:5], *(f"d{k + 1}_m" for k in range(n_d)))
         rows: list[tuple[float, int, int, list]] = []
         for i in range(o.t_s.size):
-            cells = [o.t_s[i], "odometry", None, o.v_right_mps[i], o.v_left_mps[i], None, None]
-            rows.append((float(o.t_s[i]), 0, i, [*cells, None]))
+            cells = [o.t_s[i], "odometry", None, o.v_right_mps[i], o.v_left_mps[i]]
+            rows.append((float(o.t_s[i]), 0, i, [*cells, *([None] * n_d)]))
         for i in range(d.t_s.size):
             cells = [d.t_s[i], "distance", int(d.tx[i]), None, None, *d.d_m[i]]
             rows.append((float(d.t_s[i]), 1, i, cells))
         rows.sort(key=lambda r: (r[0], r[1], r[2]))
-        text = write_table(LOG_COLUMNS, [r[3] for r in rows], header_comment=comment)
+        text = write_table(columns, [r[3] for r in rows], header_comment=comment)
         if path_or_buffer is None:
             return text
         if hasattr(path_or_buffer, "write"):
@@ -202,6 +208,23 @@ class DUHLLog:
 
         write_text_atomic(path_or_buffer, text)
         return None
+
+
+def _distance_columns(text: str, label: str) -> tuple[str, ...]:
+    """``d1_m, ..., dK_m`` of the header (K >= 3, numbered without gaps)."""
+    header = next(
+        (ln for ln in text.splitlines() if ln.strip() and not ln.lstrip().startswith("#")), ""
+    )
+    names = [c.strip() for c in header.split(",")]
+    ks = sorted(int(c[1:-2]) for c in names if re.fullmatch(r"d[1-9][0-9]{0,3}_m", c))
+    n = max([3, *ks])
+    missing = [f"d{k}_m" for k in range(1, n + 1) if k not in ks]
+    if missing and ks and max(ks) > 3:
+        raise LogFormatError(
+            f"{label}: distance columns d1_m ... d{n}_m must all be present "
+            f"(missing {', '.join(missing)})"
+        )
+    return tuple(f"d{k}_m" for k in range(1, n + 1))
 
 
 def _data_rows(text: str) -> list[int]:
@@ -239,14 +262,10 @@ def read_duhl_log(source: str | os.PathLike | IO[str], *, name: str | None = Non
     InputFileError
         The file cannot be opened.
     """
-    if hasattr(source, "read"):
-        label = name or getattr(source, "name", "<stream>")
-        text = source.read()
-        tab = read_table(io.StringIO(text), _SPEC, name=label, allow_extra=False)
-    else:
-        label = name or str(source)
-        tab = read_table(source, _SPEC, name=label, allow_extra=False)  # maps open errors
-        text = Path(source).read_text(encoding="utf-8")
+    label, text = read_text(source, name=name)
+    d_cols = _distance_columns(text, label)
+    spec = {**_SPEC, **{c: Column(empty_ok=True, nonneg=True) for c in d_cols}}
+    tab = read_table(io.StringIO(text, newline=""), spec, name=label, allow_extra=False)
     rownum = _data_rows(text)
     kind = tab["kind"]
     last_odo = None
@@ -261,7 +280,7 @@ def read_duhl_log(source: str | os.PathLike | IO[str], *, name: str | None = Non
             v = tab[c][i]
             if (c == "tx" and v < 0) or (c != "tx" and math.isnan(v)):
                 raise LogFormatError(f"{where}, column {c!r}: a {k} row needs a value here")
-        for c in _EMPTY[k]:
+        for c in (*_EMPTY[k], *d_cols[3:]) if k == "odometry" else _EMPTY[k]:
             v = tab[c][i]
             if (c == "tx" and v >= 0) or (c != "tx" and not math.isnan(v)):
                 raise LogFormatError(
@@ -278,7 +297,7 @@ def read_duhl_log(source: str | os.PathLike | IO[str], *, name: str | None = Non
     oi = np.flatnonzero(kind == "odometry")
     di = np.flatnonzero(kind == "distance")
     odometry = OdometryRows(tab["t_s"][oi], tab["v_right_mps"][oi], tab["v_left_mps"][oi])
-    d_m = np.column_stack([tab[c][di] for c in _D_COLS]).reshape(-1, 3)
+    d_m = np.column_stack([tab[c][di] for c in (*_D_COLS, *d_cols[3:])]).reshape(-1, len(d_cols))
     distances = DistanceRows(tab["t_s"][di], tab["tx"][di].astype(np.int64), d_m)
     return DUHLLog(odometry, distances)
 

@@ -469,13 +469,21 @@ def track_log(
     :class:`~rangekit.io.duhllog.Beacons` (what :func:`~rangekit.io.duhllog.read_duhl_log`
     and :func:`~rangekit.io.duhllog.read_beacons` return)."""
     o, d = log.odometry, log.distances
+    d_m = d.d_m
+    if d_m.ndim == 2 and d_m.shape[1] > 3:  # a log written for a rig with more tags
+        if np.any(np.isfinite(d_m[:, 3:])):
+            raise IncompatibleInputError(
+                f"the log has distances in d4_m ... d{d_m.shape[1]}_m: DUHL's robot has three "
+                "receivers (Kim & Kim 2013 eq (1)); use 'rangekit track range-ekf --rig'"
+            )
+        d_m = d_m[:, :3]
     return track_duhl(
         o.t_s,
         o.v_right_mps,
         o.v_left_mps,
         d.t_s,
         d.tx,
-        d.d_m,
+        d_m,
         beacons.xyz_m,
         tx_ids=beacons.ids,
         config=config,

@@ -175,7 +175,7 @@ def simulate_rig_run(
     t_r = t_r[t_r < duration_s]
     anchor = np.arange(t_r.size) % A
     pr = np.column_stack([np.interp(t_r, t, pose[:, c]) for c in range(3)])
-    d_m = np.full((t_r.size, 3), np.nan)
+    d_m = np.full((t_r.size, max(3, rig.n_tags)), np.nan)
     err = np.full((t_r.size, T), np.nan)
     out = np.zeros((t_r.size, T), dtype=bool)
     for tg in range(T):
@@ -274,7 +274,7 @@ def simulate_walker_run(
     anchor = np.arange(t_r.size) % A
     pr = np.column_stack([np.interp(t_r, t, xy[:, k]) for k in (0, 1)])
     hr = np.interp(t_r, t, np.unwrap(head))
-    d_m = np.full((t_r.size, 3), np.nan)
+    d_m = np.full((t_r.size, max(3, rig.n_tags)), np.nan)
     for tg in range(rig.n_tags):
         lx, ly, lz = rig.tag_lever_m[tg]
         px = pr[:, 0] + np.cos(hr) * lx - np.sin(hr) * ly

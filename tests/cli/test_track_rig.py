@@ -187,3 +187,24 @@ def test_a_rig_without_anchors(tmp_path, log):
     assert with_rig == ok(run(base)).stdout and with_rig.count("\n") > 40
     bare = RIGS / "girard2011_walker.json"
     assert_error(run(["track", "range-ekf", "--rig", bare, log]), 5, "girard2011_walker.json")
+
+
+def test_five_tags_through_the_log_file(tmp_path):
+    """More than three tags (issue 18): the log carries d4_m, d5_m; the rig's five tags
+    track the robot, and DUHL (three receivers) refuses that log, exit 5."""
+    from rangekit.io.duhllog import read_duhl_log
+
+    rig = square_rig(n_tags=5)
+    s = simulate_rig_run(rig, duration_s=30.0, rng=4)
+    (tmp_path / "rig.json").write_text(json.dumps(rig.to_json()))
+    p = tmp_path / "five.csv"
+    s.log.to_csv(p)
+    assert p.read_text().splitlines()[0].endswith("d3_m,d4_m,d5_m")
+    back = read_duhl_log(p).distances.d_m
+    np.testing.assert_array_equal(back, s.log.distances.d_m)  # floats round-trip exactly
+    assert back.shape[1] == 5 and np.isfinite(back[:, 4]).mean() > 0.9
+    _, rows = _table(ok(run(["track", "range-ekf", "--rig", tmp_path / "rig.json", p])).stdout)
+    err = np.hypot(*(rows[:, 1:3] - s.truth_xy(rows[:, 0])).T)
+    assert np.median(err[rows[:, 0] > 5.0]) < 0.055  # measured 0.027 m (RMS 0.032 m)
+    kim = RIGS / "kim2013.json"
+    assert_error(run(["track", "duhl", "--rig", kim, p]), 5, "d4_m")
