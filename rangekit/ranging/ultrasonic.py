@@ -6,8 +6,9 @@ The schemes are :func:`rangekit.ranging.oneway.range_oneway` (Kim & Kim 2013 §I
 ``c * t / 2`` of the earliest echo after the ring-down), their shared core (the result
 type :class:`ToF`, the activation windows, the loop from arrivals to distances)
 :mod:`rangekit.ranging.tof`. This module ranges files of either scheme
-(:func:`range_ultrasonic_files`, what ``rangekit range --scheme oneway|echo`` runs),
-formats the rows (:func:`format_tof`) and gives the matched-filter trace of one window
+(:func:`range_ultrasonic_files`, what ``rangekit range --scheme oneway|echo`` runs; the
+rows are formatted by :func:`rangekit.io.results.format_tof`) and gives the matched-filter
+trace of one window
 (:func:`matched_trace`); it re-exports the schemes, so ``from rangekit.ranging.ultrasonic
 import range_oneway`` keeps working.
 
@@ -18,6 +19,7 @@ Examples
 >>> fs = 192000.0
 >>> x = np.zeros((1, 20000))
 >>> x[0, 560 : 561 + 100] = coded_template(fs=fs)
+>>> from rangekit.io.results import format_tof
 >>> rows = [r.as_dict() for r in range_oneway(x, fs=fs, tx=None, rx=None, speed_m_s=343.0)]
 >>> print(format_tof([{"file": "a.wav", **r, "flags": []} for r in rows], "csv",
 ...                  scheme="oneway").splitlines()[1])
@@ -50,7 +52,6 @@ __all__ = [
     "ULTRASONIC_SCHEMES",
     "MatchedTrace",
     "ToF",
-    "format_tof",
     "matched_trace",
     "range_echo",
     "range_oneway",
@@ -112,7 +113,7 @@ def range_ultrasonic_files(
     calibration: Calibration | None = None,
     **kw,
 ) -> list[dict]:
-    """Ranges of every file, channel and window; rows for :func:`format_tof`.
+    """Ranges of every file, channel and window; rows for :func:`rangekit.io.results.format_tof`.
 
     Each file is ranged on its own (one-way: channel = receiver; echo: channel = sensor).
 
@@ -180,28 +181,6 @@ def range_ultrasonic_files(
                 d.pop("tx")
             rows.append({"file": str(p), **d, "flags": list(r.flags)})
     return rows
-
-
-def format_tof(rows: list[dict], fmt: str, *, scheme: str, meta: dict | None = None) -> str:
-    """Rows of :func:`range_ultrasonic_files` as a table, CSV or JSON (key ``ranges``)."""
-    from rangekit.io.results import format_rows
-
-    fields = ["file", "window"] + (["tx"] if scheme == "oneway" else [])
-    fields += ["channel", "distance_m", "sigma_m", "snr_db", "arrival_s", "flags"]
-    if fmt == "table":
-        out = []
-        for r in rows:
-            t = dict(r)
-            for k, nd in (("distance_m", 4), ("sigma_m", 5), ("snr_db", 1), ("arrival_s", 7)):
-                t[k] = "-" if r[k] is None else f"{r[k]:.{nd}f}"
-            if "tx" in t and t["tx"] is None:
-                t["tx"] = "-"
-            t["flags"] = ",".join(r.get("flags") or ()) or "-"
-            out.append(t)
-        return format_rows(out, fields, fmt, meta=meta, key="ranges")
-    if fmt == "csv":
-        rows = [{k: ("" if v is None else v) for k, v in r.items()} for r in rows]
-    return format_rows(rows, fields, fmt, meta=meta, key="ranges")
 
 
 @dataclass(frozen=True)
