@@ -67,6 +67,11 @@ SECTIONS: dict[str, dict[str, tuple[str, str]]] = {
         "detect_template": ("rangekit.detect.template", "detect_template"),
     },
     "Ranging": {
+        "run_range": ("rangekit.ranging", "run_range"),
+        "Medium": ("rangekit.ranging", "Medium"),
+        "TwoWaySetup": ("rangekit.ranging", "TwoWaySetup"),
+        "SeriesOptions": ("rangekit.ranging", "SeriesOptions"),
+        "ClockRateCorrection": ("rangekit.ranging", "ClockRateCorrection"),
         "range_beepbeep": ("rangekit.ranging", "range_beepbeep"),
         "range_channels": ("rangekit.ranging", "range_channels"),
         "range_files": ("rangekit.ranging", "range_files"),
@@ -100,6 +105,7 @@ SECTIONS: dict[str, dict[str, tuple[str, str]]] = {
         "read_audio": ("rangekit.io", "read_audio"),
         "write_audio": ("rangekit.io", "write_audio"),
         "load_devices": ("rangekit.io", "load_devices"),
+        "RowWriter": ("rangekit.io.stream", "RowWriter"),
     },
     "Simulation": {
         "render_beepbeep": ("rangekit.sim", "render_beepbeep"),

@@ -29,13 +29,14 @@ from __future__ import annotations
 import math
 import os
 import re
+from collections.abc import Collection
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from rangekit.errors import InputFileError, RangekitError
 
-__all__ = ["Setup", "find_setup", "parse_setup"]
+__all__ = ["Setup", "find_setup", "parse_setup", "setup_defaults"]
 
 _SCHEMES = ("beepbeep", "oneway", "echo")
 _DEV = re.compile(r"^(?P<stem>.+)_dev\d+$")
@@ -145,3 +146,30 @@ def find_setup(recordings: list[str | os.PathLike]) -> Setup | None:
             continue
         return parse_setup(obj["setup"], name=str(cand))
     return None
+
+
+def setup_defaults(setup: Setup, scheme: str, unset: Collection[str]) -> dict[str, Any]:
+    """The values ``setup`` gives a ``scheme``'s options that are not set.
+
+    ``unset`` names the options left to their defaults, among ``self_distance_m``,
+    ``temp_c``, ``period_s``, ``latency_s``, ``tx_order``. Two-way: the self-distances
+    and temperature; one-way: the period, latency, transmitter order and temperature;
+    echo: the period and temperature. A setup for another scheme gives nothing.
+
+    Examples
+    --------
+    >>> s = Setup("x.json", "beepbeep", self_distance_m=(0.1, 0.1), temp_c=25.0)
+    >>> setup_defaults(s, "beepbeep", {"self_distance_m", "temp_c"})
+    {'self_distance_m': (0.1, 0.1), 'temp_c': 25.0}
+    >>> setup_defaults(s, "oneway", {"temp_c"})
+    {}
+    """
+    if setup.scheme != scheme:
+        return {}
+    wanted = {"beepbeep": ("self_distance_m",), "oneway": ("period_s", "latency_s", "tx_order")}
+    out = {}
+    for key in (*wanted.get(scheme, ("period_s",)), "temp_c"):
+        value = getattr(setup, key)
+        if value is not None and key in unset:
+            out[key] = value
+    return out

@@ -7,19 +7,14 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from rangekit import _validate as V
 from rangekit.detect import DETECTORS, detect
 from rangekit.detect.changepoint import find_bursts
 from rangekit.errors import DetectionError, InvalidParameterError
 from rangekit.io.audio import Channel, load_devices
-from rangekit.physics import DEFAULT_TEMP_C, speed_of_sound_m_s
-from rangekit.ranging.beepbeep import (
-    DEFAULT_CLOCK_PPM,
-    check_speed,
-    range_beepbeep,
-    self_distances,
-)
+from rangekit.physics import DEFAULT_TEMP_C
+from rangekit.ranging.beepbeep import DEFAULT_CLOCK_PPM, range_beepbeep
 from rangekit.ranging.calibration import Calibration
+from rangekit.ranging.config import Medium, TwoWaySetup
 from rangekit.signals.beep import Beep
 from rangekit.signals.probe import Probe
 from rangekit.types import Arrivals, RangeResult
@@ -100,6 +95,8 @@ def range_channels(
     clock_ppm: float = DEFAULT_CLOCK_PPM,
     probe: Probe | None = None,
     calibration: Calibration | None = None,
+    medium: Medium | None = None,
+    setup: TwoWaySetup | None = None,
 ) -> RangeResult:
     """Two-way ranges between devices from their recordings (device i = channel i).
 
@@ -127,19 +124,28 @@ def range_channels(
         A two-way calibration (:func:`rangekit.ranging.calibration.fit_calibration`) to
         apply: its offset replaces ``self_distance_m`` (which must then be 0) and a fitted
         speed of sound replaces ``temp_c``/``speed_m_s``.
+    medium : Medium, optional
+        The air (:class:`rangekit.ranging.config.Medium`); replaces ``temp_c`` and
+        ``speed_m_s`` (built from them when not given).
+    setup : TwoWaySetup, optional
+        Self-distances and clock tolerance (:class:`rangekit.ranging.config.TwoWaySetup`);
+        replaces ``self_distance_m`` and ``clock_ppm`` (built from them when not given).
     """
     beep = Beep() if beep is None else beep
     n = len(channels)
-    # Every parameter is checked before the (slower) detection.
-    c = speed_of_sound_m_s(temp_c) if speed_m_s is None else check_speed(speed_m_s)
-    self_distances(self_distance_m, n)
-    V.in_range("clock_ppm", clock_ppm, 0.0, 1e4)
+    # Every parameter is checked (once, by the configuration objects) before detection.
+    medium = Medium(temp_c=temp_c, speed_m_s=speed_m_s) if medium is None else medium
+    if setup is None:
+        setup = TwoWaySetup(self_distance_m=self_distance_m, clock_ppm=clock_ppm)
+    c = medium.c
+    self_distance_m, clock_ppm = setup.self_distance_m, setup.clock_ppm
+    setup.self_distances(n)
     if detector not in DETECTORS:
         raise InvalidParameterError(f"detector={detector!r} must be one of {', '.join(DETECTORS)}")
     arrivals, errors = [], []
     if calibration is not None:
         calibration.check_scheme("beepbeep")
-        if np.any(self_distances(self_distance_m, n) != 0):
+        if np.any(setup.self_distances(n) != 0):
             raise InvalidParameterError(
                 "give self_distance_m or a calibration, not both: the calibration's offset "
                 "already holds the speaker-to-microphone distances"

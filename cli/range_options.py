@@ -1,0 +1,242 @@
+"""``rangekit range``'s options, and how they become the library's configuration objects.
+
+Parsing only: option declarations, which options apply to which scheme (usage errors
+naming the option), the setup sidecar's values for options not given
+(:mod:`rangekit_cli.range_setup`), and the configuration objects of
+:func:`rangekit.ranging.run.run_range` built from the values.
+"""
+
+from __future__ import annotations
+
+import click
+from rangekit_cli._options import (
+    FiniteRange,
+    beep_options,
+    clock_ppm_option,
+    debug_option,
+    detail,
+    detector_option,
+    format_option,
+    is_verbose,
+    output_option,
+    self_distance_option,
+    speed_of_sound_option,
+    temperature_option,
+    template_option,
+    ultrasonic_options,
+    verbosity_options,
+)
+
+calibration_option = click.option(
+    "--calibration",
+    type=click.Path(dir_okay=False),
+    default=None,
+    metavar="CAL.json",
+    help="Apply a calibration from `rangekit calibrate` (beepbeep, oneway): its offset "
+    "replaces --self-distance (--latency for oneway), its fitted speed of sound, if any, "
+    "replaces --temperature.",
+)
+
+
+#: Every option of ``rangekit range`` after FILES, in help order.
+_OPTIONS = (
+    click.argument("files", nargs=-1, required=True, type=click.Path(dir_okay=True)),
+    click.option(
+        "--scheme",
+        type=click.Choice(["beepbeep", "oneway", "echo"]),
+        default="beepbeep",
+        show_default=True,
+        help="beepbeep = two-way audible beeps, no clock sync; oneway = RF-synchronised "
+        "ultrasonic beacons (sample 0 = trigger); echo = SRF02-style pulse-echo (sample 0 = ping).",
+    ),
+    self_distance_option(
+        "Speaker-to-microphone distance in metres: one for all devices, or one per device."
+    ),
+    temperature_option,
+    speed_of_sound_option(),
+    clock_ppm_option("1-sigma sample-clock tolerance per device, ppm (widens sigma_m only)."),
+    detector_option,
+    template_option,
+    calibration_option,
+    beep_options,
+    ultrasonic_options,
+    click.option(
+        "--series",
+        is_flag=True,
+        help="Long recordings: range block by block with bounded memory and print a time series "
+        "(t_s first); CSV rows are written as they are produced.",
+    ),
+    click.option(
+        "--block",
+        "block_s",
+        type=FiniteRange(0.001, 1e6),
+        default=None,
+        metavar="S",
+        help="--series: block length in seconds [default: 2^21 samples over all channels].",
+    ),
+    click.option(
+        "--exchange",
+        "exchange_s",
+        type=FiniteRange(0.001, 3600.0),
+        default=None,
+        metavar="S",
+        help="--series beepbeep: longest time from device 0's beep to the last device's beep "
+        "of one exchange [default: (N-1) x (beep duration + 0.5 s)].",
+    ),
+    click.option(
+        "--skew",
+        "skew_s",
+        type=FiniteRange(0.0, 3600.0),
+        default=None,
+        metavar="S",
+        help="--series beepbeep: allowance for the time of flight and for differing recording "
+        "start times [default: 0.1].",
+    ),
+    click.option(
+        "--clock-rate",
+        "clock_rate",
+        default=None,
+        metavar="estimate|off|PPM[,PPM...]",
+        help="--series beepbeep: correct the devices' sample-clock rates. estimate: from the "
+        "spacing of the exchanges, relative to device 0 (reported on stderr; the rows then come "
+        "at the end, after the whole recording); PPM,...: known rates, one per device (device 0 "
+        "first) or one per device after device 0; off: no correction [default: off].",
+    ),
+    click.option(
+        "--no-setup",
+        "no_setup",
+        is_flag=True,
+        help="Do not read the setup (self-distances, temperature, period, latency, tx order) of "
+        "a sidecar NAME.json beside the recordings that names exactly them, such as `rangekit "
+        "synth` writes; options given always win over it.",
+    ),
+    click.option(
+        "--jobs",
+        type=click.IntRange(1, 256),
+        default=None,
+        metavar="N",
+        help="With --series (beepbeep): N worker processes detect blocks in parallel; the "
+        "rows are those of one job, in order (at most 256) [default: 1].",
+    ),
+    click.option(
+        "--strict",
+        is_flag=True,
+        help="Never print a doubtful distance: a range flagged clipped, low_snr, "
+        "ambiguous_first_path, inconsistent_bursts, poor_match, reverb_limited, negative or "
+        "order is refused (exit 10). One beepbeep exchange: nothing is written. --series and "
+        "oneway/echo rows: every row is written, doubtful ones with an empty distance and the "
+        "flag 'withheld', then exit 10.",
+    ),
+    format_option,
+    output_option,
+    verbosity_options,
+    debug_option,
+)
+
+
+def range_options(f):
+    """Apply every option of ``rangekit range`` (help order)."""
+    for option in reversed(_OPTIONS):
+        f = option(f)
+    return f
+
+
+def given(name: str) -> bool:
+    """Whether option ``name`` was given (not left to its default)."""
+    src = click.get_current_context().get_parameter_source(name)
+    return src != click.core.ParameterSource.DEFAULT
+
+
+def check_series_options(files, *, scheme, series, kw) -> None:
+    """Usage errors for --series options given where they do not apply (each names it)."""
+    given = {k: kw.get(k) for k in ("block_s", "exchange_s", "skew_s", "clock_rate", "jobs")}
+    names = {"block_s": "--block", "exchange_s": "--exchange", "skew_s": "--skew"}
+    names.update(clock_rate="--clock-rate", jobs="--jobs")
+    if not series:
+        for k, v in given.items():
+            if v is not None:
+                raise click.UsageError(f"{names[k]} applies to --series only")
+    elif scheme != "beepbeep":
+        for k in ("exchange_s", "skew_s", "clock_rate", "jobs"):
+            if given[k] is not None:
+                raise click.UsageError(
+                    f"{names[k]} applies to --series with --scheme beepbeep only"
+                )
+    jobs = given["jobs"]
+    if jobs is not None and jobs > 1 and any(f == "-" for f in files):
+        raise click.UsageError(
+            "--jobs N reads the recording in every worker: give a file, not - (standard input)"
+        )
+
+
+def check_template_options(*, scheme, series, template, calibration) -> None:
+    """Usage errors for --template / --calibration / --detector where they do not apply."""
+    if series and scheme != "beepbeep" and (template is not None or calibration is not None):
+        raise click.UsageError(
+            "--template and --calibration apply to --series with --scheme beepbeep only"
+        )
+    if template is not None and _source_is_commandline("detector"):
+        raise click.UsageError(
+            "--detector applies to the built-in beep; --template uses the matched filter"
+        )
+
+
+def _source_is_commandline(name: str) -> bool:
+    src = click.get_current_context().get_parameter_source(name)
+    return src == click.core.ParameterSource.COMMANDLINE
+
+
+_ULTRASONIC_KEYS = (
+    "latency",
+    "period",
+    "tx_order",
+    "channels",
+    "min_range",
+    "max_range",
+    "q",
+    "code",
+    "carrier",
+    "cycles_per_bit",
+)
+
+
+def describe(scheme, detector, template, calibration, self_distance, temp_c, speed) -> None:
+    """--verbose: one stderr line with what the run uses."""
+    if not is_verbose():
+        return
+    what = f"template '{template}'" if template is not None else f"detector {detector}"
+    if scheme != "beepbeep" and template is None:
+        what = "coded burst (--code)"
+    air = f"speed of sound {speed:g} m/s" if speed is not None else f"temperature {temp_c:g} C"
+    cal = f", calibration '{calibration}'" if calibration is not None else ""
+    sd = f", self-distance {self_distance}" if scheme == "beepbeep" else ""
+    detail(f"rangekit: range: scheme {scheme}, {what}, {air}{sd}{cal}")
+
+
+def refuse_ultrasonic_options(kw: dict) -> None:
+    """Usage error for a one-way / echo option given with the two-way scheme."""
+    for k in _ULTRASONIC_KEYS:
+        if kw.pop(k, None) is not None:
+            opt = "--" + k.replace("_", "-")
+            raise click.UsageError(f"{opt} applies to --scheme oneway and echo only")
+
+
+def refuse_self_distance(sd) -> None:
+    """Usage error for --self-distance given with --calibration."""
+    if any(v != 0 for v in sd):
+        raise click.UsageError(
+            "give --self-distance or --calibration, not both: the calibration's offset "
+            "already holds the speaker-to-microphone distances"
+        )
+
+
+def read_calibration(path, scheme: str):
+    """The calibration of ``--calibration`` (None without it), checked against the scheme."""
+    if path is None:
+        return None
+    from rangekit.ranging.calibration import read_calibration as read
+
+    cal = read(path)
+    if cal.scheme != scheme:
+        raise click.UsageError(f"'{path}' is a calibration for --scheme {cal.scheme}, not {scheme}")
+    return cal
