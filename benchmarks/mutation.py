@@ -56,6 +56,7 @@ TESTS: dict[str, tuple[str, ...]] = {
     "rangekit/ranging/beepbeep.py": (
         "tests/ranging/test_beepbeep.py",
         "tests/ranging/test_beepbeep_boundaries.py",
+        "tests/ranging/test_beepbeep_mutation.py",
     ),
     "rangekit/detect/refine.py": (
         "tests/detect/test_refine.py",
