@@ -84,7 +84,7 @@ class TwoWaySetup:
     ----------
     self_distance_m : float or sequence of float
         Speaker-to-microphone distance of every device, or one per device (play order),
-        metres, within [0, 2]. A list is kept as a tuple.
+        metres, within [0, 2]. A list or array is kept as a tuple.
     clock_ppm : float
         1-sigma sample-clock tolerance per device, ppm, within [0, 1e4] (widens sigma only).
 
@@ -96,6 +96,8 @@ class TwoWaySetup:
 
     def __post_init__(self) -> None:
         sd = self.self_distance_m
+        if hasattr(sd, "tolist") and getattr(sd, "ndim", 0) > 0:  # a numpy array
+            sd = sd.tolist()
         if isinstance(sd, (list, tuple)):
             sd = tuple(sd)
             object.__setattr__(self, "self_distance_m", sd)

@@ -230,6 +230,19 @@ def run_range(
     RangeRun
         Its rows are computed as it is iterated (a series) or already (one exchange or
         a set of one-way / echo files).
+
+    Examples
+    --------
+    >>> import pathlib, tempfile
+    >>> from rangekit.io import write_audio
+    >>> from rangekit.sim import pair_devices, render_beepbeep
+    >>> sim = render_beepbeep(pair_devices(2.0, self_distance_m=0.1), rng=1)
+    >>> paths = [pathlib.Path(tempfile.mkdtemp()) / f"dev{i}.wav" for i in range(2)]
+    >>> for p, x, fs in zip(paths, sim.recordings, sim.fs):
+    ...     write_audio(p, x, fs=fs)
+    >>> job = run_range(paths, setup=TwoWaySetup(self_distance_m=0.1))
+    >>> [(r["a"], r["b"], round(r["distance_m"], 2)) for r in job.rows()]
+    [(0, 1, 2.0)]
     """
     medium = Medium() if medium is None else medium
     setup = TwoWaySetup() if setup is None else setup

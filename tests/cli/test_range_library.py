@@ -143,6 +143,9 @@ def test_keyword_api_builds_the_objects_bit_identical(data):
         chans, medium=Medium(temp_c=25.0), setup=TwoWaySetup((0.1, 0.11), clock_ppm=10.0)
     )
     assert kw.ranges == obj.ranges and kw.speed_m_s == obj.speed_m_s
+    arr = range_channels(chans, temp_c=25.0, self_distance_m=np.array([0.1, 0.11]), clock_ppm=10.0)
+    assert arr.ranges == kw.ranges
+    assert TwoWaySetup(np.array([0.1, 0.11])).self_distance_m == (0.1, 0.11)
     assert Medium(temp_c=25.0).c == speed_of_sound_m_s(25.0)
     assert Medium(temp_c=25.0, speed_m_s=350.0).c == 350.0
 
