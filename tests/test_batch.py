@@ -370,3 +370,14 @@ def test_unreachable_scheduler_is_an_input_error(archive, tmp_path, monkeypatch)
     monkeypatch.setattr(rangekit.batch, "DASK_CONNECT_TIMEOUT_S", 1.0)
     with pytest.raises(InputFileError, match="Dask scheduler"):
         run_batch(_sessions(archive)[:1], tmp_path / "x.csv", scheduler="tcp://127.0.0.1:9")
+
+
+def test_default_chunk_keeps_the_last_tasks_short():
+    from rangekit.batch._run import default_chunk
+
+    # 60 sessions on 2 workers: 1 a task (it was 7: 9 tasks, 35 sessions on one worker)
+    assert default_chunk(60, 2) == 1
+    assert [default_chunk(n, 2) for n in (0, 31, 32, 100, 500, 511, 10_000)] == [
+        1, 1, 1, 3, 15, 15, 16
+    ]  # fmt: skip
+    assert default_chunk(10_000, 0) == 16  # never divides by zero

@@ -30,6 +30,23 @@ class BatchSummary:
     first_error: str | None = None
 
 
+#: Tasks per worker the default chunk aims at: the last task decides how long the other
+#: workers wait idle, so it must be short (one task of 0.1-0.5 s sessions costs ~1 ms to
+#: send and return; 4 tasks per worker left one worker 35 sessions and the other 25 of 60).
+TASKS_PER_WORKER = 16
+
+
+def default_chunk(n_sessions: int, workers: int) -> int:
+    """Sessions per task: ``n_sessions / (16 workers)``, between 1 and 16.
+
+    Examples
+    --------
+    >>> default_chunk(60, 2), default_chunk(1000, 2), default_chunk(10_000, 4)
+    (1, 16, 16)
+    """
+    return max(1, min(16, n_sessions // (TASKS_PER_WORKER * max(1, workers))))
+
+
 def _chunks(items: Sequence[Session], size: int) -> list[list[Session]]:
     return [list(items[i : i + size]) for i in range(0, len(items), size)]
 
@@ -83,8 +100,8 @@ def run_batch(
         Called as ``progress(done, total)`` after each session (``done`` counts skipped
         sessions too).
     chunk : int, optional
-        Sessions per task sent to a worker; default: about 4 tasks per worker, at most 16
-        sessions.
+        Sessions per task sent to a worker; default :func:`default_chunk` (about 16
+        tasks per worker, at most 16 sessions a task).
 
     Returns
     -------
@@ -118,7 +135,7 @@ def run_batch(
             progress(done, total)
 
     workers = jobs if scheduler is None else 4
-    size = chunk or max(1, min(16, len(todo) // (4 * workers) or 1))
+    size = chunk or default_chunk(len(todo), workers)
     try:
         if scheduler is not None:
             _run_dask(scheduler, _chunks(todo, size), options, record)
@@ -137,6 +154,14 @@ def run_batch(
     return summary
 
 
+def _import_ranging() -> None:
+    """Import what a session's ranging imports on first use (~0.2 s CPU), so that forked
+    workers share it instead of each importing it again."""
+    import rangekit.detect.changepoint
+    import rangekit.ranging.pipeline
+    import rangekit.ranging.ultrasonic  # noqa: F401
+
+
 def _run_pool(jobs: int, chunks: list[list[Session]], options, record) -> None:
     import concurrent.futures as cf
     import multiprocessing as mp
@@ -144,6 +169,8 @@ def _run_pool(jobs: int, chunks: list[list[Session]], options, record) -> None:
     # fork starts workers in milliseconds with rangekit (and numba's compiled kernels)
     # already loaded; elsewhere spawn.
     ctx = mp.get_context("fork" if "fork" in mp.get_all_start_methods() else "spawn")
+    if ctx.get_start_method() == "fork":
+        _import_ranging()  # once here, not once per worker
     ex = cf.ProcessPoolExecutor(max_workers=jobs, mp_context=ctx, initializer=_pool_initializer)
     try:
         futs = [ex.submit(_run_chunk, c, options) for c in chunks]

@@ -57,7 +57,12 @@ import numpy as np
 
 from rangekit import _validate as V
 from rangekit.detect import DETECTORS, detect
-from rangekit.errors import DetectionError, IncompatibleInputError, InvalidParameterError
+from rangekit.errors import (
+    AudioFormatError,
+    DetectionError,
+    IncompatibleInputError,
+    InvalidParameterError,
+)
 from rangekit.physics import DEFAULT_TEMP_C, speed_of_sound_m_s
 from rangekit.ranging.beepbeep import (
     DEFAULT_CLOCK_PPM,
@@ -448,7 +453,7 @@ def _beepbeep_series(
         count = 0
         cores = range(0, n0, step)
         if jobs > 1 and len(cores) > 1:
-            blocks = _parallel_blocks(paths, beep, probe, plan, cores, jobs)
+            blocks = _parallel_blocks(sources, paths, beep, probe, plan, cores, jobs)
         else:
             blocks = (_detect_block(sources, plan, core0) for core0 in cores)
         for core0, (arrivals, names) in zip(cores, blocks, strict=True):
@@ -513,11 +518,42 @@ class _BlockPlan:
     method: str
 
 
+#: How blocks are decoded: "auto" as :func:`rangekit.io.audio.read_audio` (integer PCM of
+#: up to 24 bits straight into float32, exactly, as the whole-file path reads it), or
+#: "float64" (:func:`rangekit.io.audio.read_frames`; the reader before 2026-12-02, kept as
+#: the benchmarks' previous-code-path peer).
+_BLOCK_DTYPE = "auto"
+#: Integer subtypes: every sample finite and within full scale, so no whole-block check.
+_INTEGER_SUBTYPES = frozenset({"PCM_S8", "PCM_U8", "PCM_16", "PCM_24", "ALAW", "ULAW"})
+
+
+def _read_block(f, start: int, stop: int) -> np.ndarray:
+    """Samples ``[start, stop)`` of an opened file as (channels, n), each channel one
+    contiguous row (what the detector takes without a copy).
+
+    Integer PCM of up to 24 bits (and A-law, mu-law) is decoded straight into float32,
+    which holds every such sample exactly (the values equal the float64 ones, as
+    ``read_audio(dtype="auto")`` of the whole file), and needs no finiteness or peak check;
+    anything else goes through :func:`rangekit.io.audio.read_frames` (float64, checked).
+    """
+    from rangekit.io.audio import _name, read_frames
+
+    if _BLOCK_DTYPE != "auto" or f.subtype not in _INTEGER_SUBTYPES:
+        return np.ascontiguousarray(read_frames(f, start, stop).T)
+    start, stop = max(0, int(start)), min(int(f.frames), int(stop))
+    if stop <= start:
+        return np.zeros((f.channels, 0), dtype=np.float32)
+    try:
+        f.seek(start)
+        x = f.read(stop - start, dtype="float32", always_2d=True)
+    except RuntimeError as e:  # soundfile.LibsndfileError is a RuntimeError
+        raise AudioFormatError(f"'{_name(f)}': cannot read samples {start}-{stop} ({e})") from e
+    return np.ascontiguousarray(x.T)  # mono: a view (a (1, n) array is contiguous)
+
+
 def _detect_block(sources, plan: _BlockPlan, core0: int) -> tuple[list[Arrivals], list[str]]:
     """Every device's arrivals in the block whose core starts at device 0's ``core0``, as
     file sample indices sorted by onset, and the devices' names."""
-    from rangekit.io.audio import read_frames
-
     lo_s, hi_s = core0 / plan.fs0, (core0 + plan.step) / plan.fs0
     n = sum(len(s.devices) for s in sources)
     arrivals: list[Arrivals] = [None] * n  # type: ignore[list-item]
@@ -526,14 +562,14 @@ def _detect_block(sources, plan: _BlockPlan, core0: int) -> tuple[list[Arrivals]
     for s in sources:
         r0 = max(0, int(math.floor((lo_s - plan.pre_s) * s.fs)))
         r1 = min(s.frames, int(math.ceil((hi_s + plan.post_s) * s.fs)))
-        x = read_frames(s.f, r0, r1)
+        x = _read_block(s.f, r0, r1)
         for col, dev in enumerate(s.devices):
             names[dev] = _device_name(s, col)
-            if len(x) == 0:
+            if x.shape[1] == 0:
                 arrivals[dev] = Arrivals.empty(fs=s.fs, n_bursts=n_bursts)
                 continue
             a = detect(
-                x[:, col], fs=s.fs, signal=plan.signal, method=plan.method, what=f"'{names[dev]}'"
+                x[col], fs=s.fs, signal=plan.signal, method=plan.method, what=f"'{names[dev]}'"
             )
             a = a.take(np.argsort(a.onset, kind="stable"))
             arrivals[dev] = _shift(a, r0)
@@ -553,14 +589,21 @@ def _worker_block(plan: _BlockPlan, core0: int):
     return _detect_block(_WORKER_SOURCES, plan, core0)
 
 
-def _parallel_blocks(paths, beep, probe, plan: _BlockPlan, cores, jobs: int):
-    """:func:`_detect_block` of every core in ``cores``, in order, by ``jobs`` worker
-    processes (each opens the files itself); at most ``2 jobs`` blocks in flight, so memory
-    stays bounded by the block size."""
+def _parallel_blocks(sources, paths, beep, probe, plan: _BlockPlan, cores, jobs: int):
+    """:func:`_detect_block` of every core in ``cores``, in order: the first one in this
+    process, the others by ``jobs`` worker processes (each opens the files itself); at
+    most ``2 jobs`` blocks in flight, so memory stays bounded by the block size.
+
+    The first block is detected here before the workers are forked, so they start with
+    the detector's imports, caches and compiled kernels loaded (~1 s CPU that each worker
+    would otherwise spend again), and its result is not waited for.
+    """
     import collections
     import concurrent.futures as cf
     import multiprocessing as mp
 
+    first = _detect_block(sources, plan, cores[0])
+    cores = cores[1:]
     ctx = mp.get_context("fork" if "fork" in mp.get_all_start_methods() else "spawn")
     ex = cf.ProcessPoolExecutor(
         max_workers=jobs,
@@ -575,6 +618,7 @@ def _parallel_blocks(paths, beep, probe, plan: _BlockPlan, cores, jobs: int):
             pending.append(ex.submit(_worker_block, plan, core0))
             if len(pending) >= 2 * jobs:
                 break
+        yield first
         while pending:
             block = pending.popleft().result()
             nxt = next(it, None)
