@@ -98,9 +98,10 @@ def range_cmd(
       rangekit range --series phone_log.wav --self-distance 0.1 --jobs 2 --format csv
       rangekit range --series --scheme echo srf02_log.wav --period 0.07 --format csv
     """
-    series_kw = {"block_s": block_s, "exchange_s": exchange_s, "skew_s": skew_s}
-    series_kw.update(clock_rate=clock_rate, jobs=jobs)
-    check_series_options(files, scheme=scheme, series=series, kw=series_kw)
+    given = {"block_s": block_s, "exchange_s": exchange_s, "skew_s": skew_s, "jobs": jobs}
+    check_series_options(
+        files, scheme=scheme, series=series, kw={**given, "clock_rate": clock_rate}
+    )
     probe = load_template(template)
     cal = read_calibration(calibration, scheme)
     if not no_setup:
@@ -113,17 +114,12 @@ def range_cmd(
 
     job = {"scheme": scheme, "medium": Medium(temp_c=temp_c, speed_m_s=speed), "strict": strict}
     job.update(probe=probe, calibration=cal, calibration_file=calibration)
+    if series:
+        job["series"] = SeriesOptions(**{k: v for k, v in given.items() if v is not None})
     if scheme == "beepbeep":
         job.update(_two_way(self_distance, clock_ppm, detector, clock_rate, cal, probe, kw))
-        if series:
-            from rangekit.ranging.series import DEFAULT_SKEW_S
-
-            skew = DEFAULT_SKEW_S if skew_s is None else skew_s
-            job["series"] = SeriesOptions(block_s, exchange_s, skew, 1 if jobs is None else jobs)
     else:
         job["ultrasonic"] = _ultrasonic(files, scheme, temp_c, speed, series, probe, kw)
-        if series:
-            job["series"] = SeriesOptions(block_s=block_s)
     _run(files, job, fmt, output)
 
 
@@ -174,19 +170,20 @@ def _run(files, job: dict, fmt: str, output: str | None) -> None:
     """Call the library, write its rows, report on stderr."""
     from rangekit.ranging.run import run_range
 
-    writer = None
+    writer: RowWriter | None = None  # made once the run knows its columns
+
+    def on_progress(done_s: float, total_s: float) -> None:  # called while rows are written
+        writer.progress(done_s, total_s)
+
+    def on_report(line: str) -> None:
+        writer.close_progress()
+        note(line)
+
     if job.get("series") is not None:
-        from rangekit.ranging.series import SERIES_FIELDS
-
-        writer = RowWriter(SERIES_FIELDS[job["scheme"]], fmt, output, bar=_bar)
-        job.update(progress=writer.progress, report=lambda line: _report(writer, line))
+        job.update(progress=on_progress, report=on_report)
     run = run_range(files, **job)
-    _write(run, writer or RowWriter(run.fields, fmt, output))
-
-
-def _report(writer: RowWriter, line: str) -> None:
-    writer.close_progress()
-    note(line)
+    writer = RowWriter(run.fields, fmt, output, bar=_bar)
+    _write(run, writer)
 
 
 def _write(run, writer: RowWriter) -> None:
