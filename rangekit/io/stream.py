@@ -17,7 +17,7 @@ from collections.abc import Callable, Iterable, Sequence
 from pathlib import Path
 from typing import Protocol
 
-from rangekit.errors import InputFileError
+from rangekit.errors import InputFileError, InvalidParameterError
 
 __all__ = ["ProgressBar", "RowWriter"]
 
@@ -67,7 +67,7 @@ class RowWriter:
         stdout=None,
     ) -> None:
         if fmt not in ("table", "json", "csv"):
-            raise ValueError(f"fmt={fmt!r} must be table, json or csv")
+            raise InvalidParameterError(f"fmt={fmt!r} must be table, json or csv")
         self.fields = tuple(fields)
         self.fmt = fmt
         self.output = None if output == "-" else output

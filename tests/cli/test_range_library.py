@@ -161,6 +161,7 @@ def test_keyword_api_builds_the_objects_bit_identical(data):
         (lambda: SeriesOptions(block_s=0.0), "block_s"),
         (lambda: SeriesOptions(skew_s=-1.0), "skew_s"),
         (lambda: SeriesOptions(jobs=0), "jobs"),
+        (lambda: RowWriter(("a",), "xml", None), "fmt"),
         (lambda: run_range(["x.wav"], scheme="radar"), "scheme"),
         (lambda: run_range(["x.wav"], scheme="echo", clock_rate=ClockRateCorrection()), "clock"),
     ],
