@@ -70,7 +70,11 @@ TESTS: dict[str, tuple[str, ...]] = {
         "tests/detect/test_edge_kernels.py",
     ),
     "rangekit/detect/_kernels.py": ("tests/detect/test_kernels.py",),
-    "rangekit/detect/xcorr.py": ("tests/detect/test_front.py", "tests/detect/test_changepoint.py"),
+    "rangekit/detect/xcorr.py": (
+        "tests/detect/test_xcorr_mutation.py",
+        "tests/detect/test_front.py",
+        "tests/detect/test_changepoint.py",
+    ),
     "rangekit/ranging/clock.py": (
         "tests/ranging/test_clock.py",
         "tests/ranging/test_clock_mutation.py",
