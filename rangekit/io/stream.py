@@ -23,7 +23,7 @@ __all__ = ["ProgressBar", "RowWriter"]
 
 
 class ProgressBar(Protocol):
-    """What :class:`RowWriter` needs of a progress display (``rangekit_cli._progress``)."""
+    """What :class:`RowWriter` needs of a progress display (the command line's progress bar)."""
 
     done: float
 
