@@ -31,8 +31,9 @@ class BatchSummary:
 
 
 #: Tasks per worker the default chunk aims at: the last task decides how long the other
-#: workers wait idle, so it must be short (one task of 0.1-0.5 s sessions costs ~1 ms to
-#: send and return; 4 tasks per worker left one worker 35 sessions and the other 25 of 60).
+#: workers wait idle, so it must be short (a task costs ~1 ms to send and return, a
+#: session 0.05-0.5 s). With 4 tasks per worker, 60 sessions went in chunks of 7: a
+#: worker could finish up to 7 sessions after the other; now at most one.
 TASKS_PER_WORKER = 16
 
 
