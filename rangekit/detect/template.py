@@ -88,7 +88,7 @@ from rangekit.detect.matched import (
     welch_spectra,
     zero_phase_taps,
 )
-from rangekit.errors import InvalidParameterError
+from rangekit.errors import IncompatibleInputError, InvalidParameterError
 from rangekit.signals.probe import Probe
 from rangekit.types import Arrivals, flag_bit
 
@@ -232,6 +232,13 @@ def detect_template(
         over the arrival's strongest peak; ``burst_onsets[:, 0]`` repeats the onset;
         ``flags`` as in the module notes.
 
+    Raises
+    ------
+    InvalidParameterError
+        Bad parameters.
+    IncompatibleInputError
+        A sample rate the probe does not fit, or a recording shorter than the probe.
+
     Notes
     -----
     The 1-sigma in samples is ``sqrt(s_crb^2 + s_interp^2 + s_shape^2)`` with
@@ -268,6 +275,13 @@ def detect_template(
     probe.check_fits(fs, what=what)
     if len(x) < 3:
         return _empty(fs)
+    if probe.duration_s * fs > len(x):
+        # No whole arrival fits, and the filter's cost would grow with the template rather
+        # than the recording (a 20 s probe on 1.3 s took 8 s and 0.8 GB to find nothing).
+        raise IncompatibleInputError(
+            f"{what} ({len(x) / fs:.3g} s) is shorter than the probe "
+            f"({probe.duration_s:.3g} s): no whole arrival of it fits"
+        )
     base = _base(probe, fs, block)
     if weighting == "none":
         mask = np.zeros(0, dtype=bool)

@@ -82,3 +82,19 @@ def test_the_right_template_is_not_refused(files):
         np.testing.assert_allclose(np.sort(a.onset), np.sort(sim.onsets[ch]), atol=0.5)
         for i in range(2):
             assert not {"low_snr", "poor_match"} & set(a.flag_names(i)), a.flag_names(i)
+
+
+def test_a_probe_longer_than_the_recording_is_refused_at_once():
+    """Issue 17: a 20 s template on a 1.3 s recording took 8 s and 0.8 GB to find nothing;
+    no whole arrival fits, so it is refused before any filtering (IncompatibleInputError,
+    exit 5), with both durations in the message."""
+    from rangekit.detect.template import detect_template
+    from rangekit.errors import IncompatibleInputError
+    from rangekit.signals import linear_sweep
+
+    long_probe = linear_sweep(200.0, 8000.0, 20.0)
+    x = np.random.default_rng(0).normal(0.0, 0.01, int(1.3 * 44100))
+    with pytest.raises(
+        IncompatibleInputError, match=r"\(1\.3 s\) is shorter than the probe \(20 s\)"
+    ):
+        detect_template(x, fs=44100.0, probe=long_probe, what="'short.wav'")
