@@ -13,6 +13,7 @@ as a file is (:func:`rangekit.io.guard.read_stdin`).
 
 from __future__ import annotations
 
+import io
 import os
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -402,8 +403,13 @@ def write_audio(
     sf = _sf()
     fmt = p.suffix.lstrip(".").upper() or "WAV"
     try:
+        # Encoded in memory first: libsndfile writing straight into the file reports a
+        # full disk through cffi callbacks that print tracebacks on stderr; a memory
+        # buffer cannot fail that way, and the one write below fails cleanly (exit 3).
+        buf = io.BytesIO()
+        sf.write(buf, x, int(round(fs)), subtype=subtype, format=fmt)
         with atomic_output(p) as f:
-            sf.write(f, x, int(round(fs)), subtype=subtype, format=fmt)
+            f.write(buf.getbuffer())
     except (sf.LibsndfileError, TypeError, ValueError) as e:
         if isinstance(e, RangekitError):
             raise

@@ -175,3 +175,45 @@ def test_full_disk_is_a_clean_error_and_leaves_nothing(work, monkeypatch):
     monkeypatch.setattr(os, "replace", real)
     assert out.read_bytes() == KEEP
     assert not [p for p in work.iterdir() if p.name.endswith(".part")]
+
+
+@pytest.fixture
+def small_disk(tmp_path):
+    """A real 32 KiB tmpfs (issue 17 item 7: a full disk, not a simulated ENOSPC), or a
+    skip where this process may not mount one (not root, no CAP_SYS_ADMIN)."""
+    import subprocess
+
+    mnt = tmp_path / "small"
+    mnt.mkdir()
+    if not hasattr(os, "geteuid") or os.geteuid() != 0 or not shutil.which("mount"):
+        pytest.skip("mounting a tmpfs needs root")
+    r = subprocess.run(
+        ["mount", "-t", "tmpfs", "-o", "size=32k,mode=0777", "tmpfs", str(mnt)],
+        capture_output=True,
+        text=True,
+    )
+    if r.returncode != 0:
+        pytest.skip(f"cannot mount a tmpfs here: {r.stderr.strip()}")
+    try:
+        yield mnt
+    finally:
+        subprocess.run(["umount", "-l", str(mnt)], capture_output=True)
+
+
+@pytest.mark.filterwarnings("error::pytest.PytestUnraisableExceptionWarning")
+def test_a_really_full_disk_is_a_clean_error_and_leaves_nothing(work, small_disk):
+    """The disk fills while rangekit writes (a simulated exchange is over 100 KB of 16-bit
+    WAV, on a 32 KiB disk): exit 3, one line naming the output, no temporary file,
+    and an existing output and everything else on that disk untouched."""
+    keep = small_disk / "keep.txt"
+    keep.write_bytes(KEEP)
+    old = small_disk / "x.wav"
+    old.write_bytes(KEEP)
+    args = ["synth", "beepbeep", "--distance", "2", "--seed", "1", "-o", old]
+    line = assert_error(run(args), 3, "x.wav")  # one line: no cffi tracebacks on stderr
+    assert line.endswith("No space left on device")
+    assert old.read_bytes() == KEEP and keep.read_bytes() == KEEP
+    assert sorted(p.name for p in small_disk.iterdir()) == ["keep.txt", "x.wav"]
+    r = run(["range", "--series", "rec.wav", "--format", "csv", "-o", small_disk / "r.csv"])
+    ok(r)  # a small result fits: the disk is full, not broken
+    assert (small_disk / "r.csv").read_text().startswith("t_s,")
