@@ -15,6 +15,7 @@ import pytest
 from rangekit.detect import _edge_kernels as K
 from rangekit.detect import changepoint as cp
 from rangekit.detect.refine import EdgeFit
+from rangekit.errors import InvalidParameterError
 from rangekit.signals import Beep, beep_waveform
 from rangekit.signals.beep import beep_continuous
 from rangekit.types import Arrivals, flag_bit
@@ -276,3 +277,74 @@ def test_a_faint_beep_is_found_once_its_bursts_reach_the_per_burst_threshold(amp
     assert len(arr) == int(found)
     if found:
         assert abs(arr.onset[0] - 3000.4) < 1.0 and "low_snr" in arr.flag_names(0)
+
+
+def test_a_burst_is_timed_alike_wherever_its_change_point_falls_in_the_search_window():
+    """``_fit_at`` searches ``[c - n_win/2 - lookback, c + n_win + hop]`` (here 240 samples
+    before to 160 after ``c``): an onset anywhere inside, ends included, gets the same
+    fit (the band-limited stretch reaches far enough past both ends for the fit's
+    windows). Measured: -0.271 samples from the truth at every position."""
+    b = Beep()
+    t = np.arange(30000) / b.fs
+    onset = 3000.4
+    x = 0.3 * beep_continuous(t - onset / b.fs, beep=b)
+    x += 0.01 * np.random.default_rng(0).standard_normal(len(x))
+    cond = cp._conditioner(x, fs=b.fs, beep=b, condition=True)
+    got = []
+    for c in (3000 - 158, 3000 - 150, 3000, 3000 + 200, 3000 + 240):
+        fit = cp._fit_at(cond, c, fs=b.fs, beep=b, n_win=128, hop=32, background=False)
+        assert fit is not None, c
+        got.append(fit.onset)
+    np.testing.assert_allclose(got, got[2], rtol=0, atol=1e-9)
+    assert abs(got[2] - onset) < 0.6
+
+
+_BOUNDS = {
+    "win_s": (1e-5, 1.0),
+    "hop_s": (1e-7, 1.0),
+    "threshold_db": (-100.0, 200.0),
+    "rise_db": (-100.0, 200.0),
+}
+
+
+@pytest.mark.parametrize("name", sorted(_BOUNDS))
+def test_parameters_are_accepted_at_their_documented_bounds_and_refused_beyond(name):
+    """Each STFT/threshold parameter is accepted on its range's ends and refused just
+    outside with an InvalidParameterError naming the range (silence: no arrivals)."""
+    x = np.zeros(10000)
+    lo, hi = _BOUNDS[name]
+    for v in (lo, hi):
+        assert len(cp.detect_changepoint(x, fs=44100.0, **{name: v})) == 0
+    for v in (lo - abs(lo) * 0.1, hi * 1.1):
+        with pytest.raises(InvalidParameterError, match=rf"{name}=.* must be within \["):
+            cp.detect_changepoint(x, fs=44100.0, **{name: v})
+
+
+def test_min_bursts_and_expected_domains():
+    x = np.zeros(10000)
+    b = Beep()
+    assert len(cp.detect_changepoint(x, fs=b.fs, beep=b, min_bursts=b.n_bursts)) == 0
+    with pytest.raises(InvalidParameterError, match="min_bursts=5 exceeds n_bursts=4"):
+        cp.detect_changepoint(x, fs=b.fs, beep=b, min_bursts=5)
+    with pytest.raises(InvalidParameterError, match="expected=0"):
+        cp.detect_changepoint(x, fs=b.fs, beep=b, expected=0)
+
+
+def test_samples_beyond_1e100_are_refused_and_integers_read_as_floats():
+    """Squares of samples beyond MAX_SAMPLE_ABS (1e100) overflow: refused, one message;
+    1e100 itself is accepted. Integer samples give the float samples' detections."""
+    b = Beep()
+    x = np.zeros(20000)
+    x[100] = 1e100
+    assert len(cp.detect_changepoint(x, fs=b.fs, beep=b)) == 0
+    x[100] = 1.5e100
+    with pytest.raises(InvalidParameterError, match=r"beyond \+-1e\+100"):
+        cp.detect_changepoint(x, fs=b.fs, beep=b)
+    w = np.zeros(20000)
+    w[1000 : 1000 + b.duration_samples] = beep_waveform(b)
+    w += 1e-3 * np.random.default_rng(0).standard_normal(len(w))
+    pcm = np.round(w * 2**15).astype(np.int16)
+    got = cp.detect_changepoint(pcm, fs=b.fs, beep=b)
+    ref = cp.detect_changepoint(pcm.astype(np.float64), fs=b.fs, beep=b)
+    assert len(got) == 1 and abs(got.onset[0] - 1000.0) < 0.1
+    np.testing.assert_array_equal(got.onset, ref.onset)
