@@ -187,117 +187,11 @@ def temperature_option(f):
     )(f)
 
 
-def ultrasonic_options(f):
-    """Options of the ultrasonic schemes (oneway, echo) of ``rangekit range``."""
-    opts = [
-        click.option(
-            "--latency",
-            type=FiniteRange(0.0, 10.0),
-            default=None,
-            metavar="S",
-            help="oneway: system latency from the trigger to the drive, s, subtracted "
-            "[default: 0].",
-        ),
-        click.option(
-            "--period",
-            type=FiniteRange(1e-4, 3600.0),
-            default=None,
-            metavar="S",
-            help="oneway/echo: the file holds consecutive windows of this length, s "
-            "(0.2 for 5 Hz beacons, 0.07 for SRF02 cycles) [default: one window].",
-        ),
-        click.option(
-            "--tx-order",
-            "tx_order",
-            default=None,
-            metavar="ID[,ID...]",
-            help="oneway: transmitter id of each window, repeating [default: none].",
-        ),
-        click.option(
-            "--channels",
-            type=click.IntRange(1, 1024),
-            default=None,
-            help="Channel count every file must have [default: oneway: 3 receivers; echo: any].",
-        ),
-        click.option(
-            "--min-range",
-            "min_range",
-            type=FiniteRange(0.0, 1000.0),
-            default=None,
-            metavar="M",
-            help="Shortest distance searched, m [default: oneway 0; echo 0.15, the SRF02 "
-            "ring-down].",
-        ),
-        click.option(
-            "--max-range",
-            "max_range",
-            type=FiniteRange(0.01, 1000.0),
-            default=None,
-            metavar="M",
-            help="Longest distance searched, m [default: oneway 15; echo 6, the SRF02's].",
-        ),
-        transducer_q_options(
-            QOrAuto(),
-            None,
-            "oneway: Q of the Tx and Rx transducers. auto = unknown: every arrival is "
-            "timed by fitting the burst through resonators of unknown Q and f0 (with "
-            "overlapping reflections), the estimates pooled per receiver and transmitter; Q = "
-            "known, folded into the template; 0 = the bare drive (the transducers' delay "
-            "stays in the ranges) [default: auto]. echo: the template's Q (auto = 4).",
-        ),
-        click.option(
-            "--code",
-            default=None,
-            metavar="N|+-...",
-            help="Emitted code: a Barker length (2,3,4,5,7,11,13) or chips as + and - "
-            "[default: oneway: 7; echo: + (the SRF02 ping)].",
-        ),
-        click.option(
-            "--carrier",
-            type=FiniteRange(1.0, 1e7),
-            default=None,
-            help="Carrier, Hz [default: 40000].",
-        ),
-        click.option(
-            "--cycles-per-bit",
-            "cycles_per_bit",
-            type=click.IntRange(1, 1000),
-            default=None,
-            help="Carrier cycles per chip [default: oneway: 3; echo: 8].",
-        ),
-    ]
-    for o in reversed(opts):
-        f = o(f)
-    return f
-
-
 def make_burst(kw: dict, *, scheme: str):
-    """Build the CodedBurst of ``scheme`` from :func:`ultrasonic_options` values."""
-    from rangekit.signals.barker import BARKER_CODES, CodedBurst
+    """:func:`rangekit_cli.ultrasonic_options.make_burst` (kept here for ``design``)."""
+    from rangekit_cli.ultrasonic_options import make_burst as make
 
-    code = kw.get("code")
-    echo = scheme == "echo"
-    if code is None:
-        chips = (1,) if echo else BARKER_CODES[7]
-    elif code.strip().isdigit():
-        n = int(code)
-        if n not in BARKER_CODES:
-            raise click.BadParameter(
-                f"no Barker code of length {n} (lengths: "
-                f"{', '.join(str(k) for k in BARKER_CODES)})",
-                param_hint="--code",
-            )
-        chips = BARKER_CODES[n]
-    elif code and set(code) <= {"+", "-"}:
-        chips = tuple(1 if ch == "+" else -1 for ch in code)
-    else:
-        raise click.BadParameter(
-            f"{code!r} must be a Barker length or a string of + and -", param_hint="--code"
-        )
-    cpb = kw.get("cycles_per_bit") or (8 if echo else 3)
-    carrier = kw.get("carrier") or 40000.0
-    # The rate is replaced by each file's; 10 MHz here only defers the Nyquist check.
-    return CodedBurst(chips, carrier, cpb, 0.9, 1e7)
+    return make(kw, scheme=scheme)
 
 
 def detector_option(f):
@@ -571,56 +465,11 @@ def emit(text: str, output: str | None) -> None:
 
 
 def ultrasonic_kwargs(kw: dict, *, scheme: str, temp_c: float, speed: float | None) -> dict:
-    """Keyword arguments of ``range_ultrasonic_files`` from the ultrasonic options.
+    """:func:`rangekit_cli.ultrasonic_options.ultrasonic_kwargs`: the one-way / echo
+    configuration object of the options, as keywords (kept here for ``range``)."""
+    from rangekit_cli.ultrasonic_options import ultrasonic_kwargs as kwargs
 
-    ``kw`` holds the values of :func:`ultrasonic_options` and :func:`beep_options`; beep
-    options (beepbeep only) and one-way-only options with ``scheme="echo"`` are usage
-    errors naming the option.
-    """
-    from rangekit.ranging.ultrasonic import SRF02_MAX_RANGE_M, SRF02_MIN_RANGE_M
-    from rangekit.signals.transducer import Transducer
-
-    for k in ("f_hz", "n_bursts", "spacing", "burst_len", "taper", "beep_fs"):
-        if kw.get(k) is not None:
-            opt = {"f_hz": "--freq", "n_bursts": "--bursts", "beep_fs": "--beep-fs"}.get(
-                k, "--" + k.replace("_", "-")
-            )
-            raise click.UsageError(f"{opt} applies to --scheme beepbeep only")
-    burst = make_burst(kw, scheme=scheme)
-    q = kw.get("q")
-    auto = q is None or q == "auto"
-    trans = None if q == 0 else Transducer(q=4.0 if auto else q)
-    lo = kw.get("min_range")
-    hi = kw.get("max_range")
-    args: dict = {"temp_c": temp_c, "speed_m_s": speed, "period_s": kw.get("period")}
-    if scheme == "oneway":
-        tx_order = None
-        if kw.get("tx_order") is not None:
-            vals = float_list(kw["tx_order"], name="--tx-order", lo=0, hi=1e6)
-            if any(v != int(v) for v in vals):
-                raise click.BadParameter("ids must be whole numbers", param_hint="--tx-order")
-            tx_order = [int(v) for v in vals]
-        args.update(
-            tx=trans,
-            rx=trans,
-            fit_transducers=auto,
-            latency_s=kw.get("latency") or 0.0,
-            tx_ids=tx_order,
-            min_range_m=0.0 if lo is None else lo,
-            max_range_m=15.0 if hi is None else hi,
-        )
-        channels = 3 if kw.get("channels") is None else kw["channels"]
-    else:
-        for k in ("latency", "tx_order"):
-            if kw.get(k) is not None:
-                raise click.UsageError(f"--{k.replace('_', '-')} applies to --scheme oneway only")
-        args.update(
-            transducer=trans,
-            min_range_m=SRF02_MIN_RANGE_M if lo is None else lo,
-            max_range_m=SRF02_MAX_RANGE_M if hi is None else hi,
-        )
-        channels = kw.get("channels")
-    return {"channels": channels, "burst": burst, **args}
+    return kwargs(kw, scheme=scheme, temp_c=temp_c, speed=speed)
 
 
 def self_distance_option(help: str):

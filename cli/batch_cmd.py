@@ -16,11 +16,10 @@ from rangekit_cli._options import (
     speed_of_sound_option,
     temperature_option,
     template_option,
-    ultrasonic_kwargs,
-    ultrasonic_options,
     verbosity_options,
 )
 from rangekit_cli.range_cmd import calibration_option
+from rangekit_cli.ultrasonic_options import ultrasonic_kwargs, ultrasonic_options
 
 #: Exit codes of ``rangekit batch`` beyond the common ones (docs/cli.md).
 EXIT_SOME_FAILED = 8

@@ -16,10 +16,9 @@ from rangekit_cli._options import (
     speed_of_sound_option,
     temperature_option,
     template_option,
-    ultrasonic_kwargs,
-    ultrasonic_options,
     verbosity_options,
 )
+from rangekit_cli.ultrasonic_options import ultrasonic_options, ultrasonic_setup
 
 
 def parse_recording(text: str, default_m: float | None) -> tuple[list[str], float]:
@@ -128,15 +127,17 @@ def calibrate_cmd(
       rangekit calibrate --scheme oneway --template chirp.wav --distance 2 r*.wav -o ow_cal.json
       rangekit range --template sweep.wav --calibration cal.json exchange.wav
     """
+    from dataclasses import replace
+
     from rangekit_cli._options import load_template
 
     from rangekit.io.results import format_calibration
-    from rangekit.physics import speed_of_sound_m_s
     from rangekit.ranging.calibration import fit_calibration, measure_recordings
+    from rangekit.ranging.config import Medium
 
     probe = load_template(template)
     recs = [parse_recording(r, distance) for r in recordings]
-    c = speed_of_sound_m_s(temp_c) if speed is None else speed
+    c = Medium(temp_c=temp_c, speed_m_s=speed).c
     sig = f"template '{template}'" if probe is not None else f"detector {detector}"
     detail(f"rangekit: calibrate: {scheme}, {sig}, {len(recs)} recordings, c = {c:.2f} m/s")
     if scheme == "beepbeep":
@@ -149,12 +150,11 @@ def calibrate_cmd(
     else:
         if kw.get("latency") is not None:
             raise click.UsageError("--latency is what a one-way calibration fits; leave it out")
-        args = ultrasonic_kwargs(kw, scheme=scheme, temp_c=temp_c, speed=speed)
+        setup = ultrasonic_setup(kw, scheme=scheme)
         if kw.get("channels") is None:
-            args["channels"] = None
-        args.pop("latency_s", None)
-        args.pop("temp_c", None)
-        args.pop("speed_m_s", None)
+            setup = replace(setup, channels=None)  # a calibration rig: any receivers
+        args = setup.kwargs()
+        del args["latency_s"]  # what the calibration fits
     meas = []
     with progress(len(recs), "calibrate", unit="files") as bar:
         for rec in recs:  # one at a time, for the progress line; the same measurements

@@ -18,10 +18,9 @@ from rangekit_cli._options import (
     speed_of_sound_option,
     temperature_option,
     template_option,
-    ultrasonic_kwargs,
-    ultrasonic_options,
     verbosity_options,
 )
+from rangekit_cli.ultrasonic_options import ultrasonic_options, ultrasonic_setup
 
 
 def _output(f):
@@ -189,11 +188,13 @@ def matched_cmd(recording, scheme, channel, window, temp_c, speed, output, **kw)
     """
     from rangekit.errors import IncompatibleInputError
     from rangekit.plot.figures import plot_matched
+    from rangekit.ranging.config import Medium
     from rangekit.ranging.ultrasonic import matched_trace
     from rangekit.signals.barker import check_burst_fits
 
     _start(output)
-    args = ultrasonic_kwargs(kw, scheme=scheme, temp_c=temp_c, speed=speed)
+    args = ultrasonic_setup(kw, scheme=scheme).kwargs()
+    args.update(Medium(temp_c=temp_c, speed_m_s=speed).kwargs())
     burst = args.pop("burst")
     want = args.pop("channels")
     x, fs = _read_channel(recording, channel)

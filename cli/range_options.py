@@ -23,9 +23,9 @@ from rangekit_cli._options import (
     speed_of_sound_option,
     temperature_option,
     template_option,
-    ultrasonic_options,
     verbosity_options,
 )
+from rangekit_cli.ultrasonic_options import ultrasonic_options
 
 calibration_option = click.option(
     "--calibration",

@@ -84,6 +84,9 @@ SECTIONS: dict[str, dict[str, tuple[str, str]]] = {
         "read_calibration": ("rangekit.ranging.calibration", "read_calibration"),
         "range_oneway": ("rangekit.ranging.ultrasonic", "range_oneway"),
         "range_echo": ("rangekit.ranging.ultrasonic", "range_echo"),
+        "OneWaySetup": ("rangekit.ranging.config", "OneWaySetup"),
+        "EchoSetup": ("rangekit.ranging.config", "EchoSetup"),
+        "Detection": ("rangekit.ranging.config", "Detection"),
         "speed_of_sound_m_s": ("rangekit.physics", "speed_of_sound_m_s"),
     },
     "Localisation and tracking": {

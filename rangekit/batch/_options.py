@@ -73,11 +73,12 @@ class BatchOptions:
     """How sessions without a sidecar value are ranged.
 
     ``scheme`` is the default scheme; ``beepbeep`` the two-way options
-    (:class:`TwoWayOptions`, or a dict of its fields); ``oneway`` and ``echo`` the keyword
-    arguments of :func:`rangekit.ranging.ultrasonic.range_ultrasonic_files` except
-    ``scheme`` for the sessions of each scheme (a mapping: those arguments differ per
-    scheme and ``None`` is a value there, ``tx=None`` being no transducer model, so they
-    wait for the ultrasonic configuration objects of issue 19). ``pair_by_name`` changes
+    (:class:`TwoWayOptions`, or a dict of its fields); ``oneway`` and ``echo`` those of
+    the sessions of each scheme: a :class:`~rangekit.ranging.config.OneWaySetup` /
+    :class:`~rangekit.ranging.config.EchoSetup` (kept as its keywords), or a mapping of
+    the keyword arguments of :func:`rangekit.ranging.ultrasonic.range_ultrasonic_files`
+    except ``scheme`` (``temp_c``, ``speed_m_s``, ``probe``, ``calibration`` among them;
+    ``None`` is a value there, ``tx=None`` being no transducer model). ``pair_by_name`` changes
     no ranging: set it when the sessions come from :func:`pair_sessions_by_name`, so that
     the results file records it and a resume with sessions grouped by rules 1-3 (other
     names, which would mix) is refused.
@@ -94,8 +95,17 @@ class BatchOptions:
             raise InvalidParameterError(f"scheme={self.scheme!r} must be one of {SCHEMES}")
         if not isinstance(self.beepbeep, TwoWayOptions):
             object.__setattr__(self, "beepbeep", TwoWayOptions.from_dict(self.beepbeep))
-        for name in ("oneway", "echo"):  # copies: the caller's dicts may change later
-            object.__setattr__(self, name, dict(getattr(self, name)))
+        from rangekit.ranging.config import EchoSetup, OneWaySetup
+
+        for name, kind in (("oneway", OneWaySetup), ("echo", EchoSetup)):
+            v = getattr(self, name)
+            if isinstance(v, (OneWaySetup, EchoSetup)):
+                if not isinstance(v, kind):
+                    raise InvalidParameterError(
+                        f"{name}={type(v).__name__}(...) must be a {kind.__name__}"
+                    )
+                v = v.kwargs()
+            object.__setattr__(self, name, dict(v))  # a copy: the caller's may change later
 
     def fingerprint(self) -> str:
         """A stable JSON text of every option that changes results (checked on resume):

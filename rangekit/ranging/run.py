@@ -21,7 +21,7 @@ from rangekit.errors import InvalidParameterError, UnreliableResultError
 from rangekit.ranging.beepbeep import refuse_doubtful, withhold_doubtful
 from rangekit.ranging.calibration import Calibration
 from rangekit.ranging.clock import ClockRates
-from rangekit.ranging.config import Medium, SeriesOptions, TwoWaySetup
+from rangekit.ranging.config import EchoSetup, Medium, OneWaySetup, SeriesOptions, TwoWaySetup
 from rangekit.signals.beep import Beep
 from rangekit.signals.probe import Probe
 
@@ -185,7 +185,7 @@ def run_range(
     calibration_file: str | os.PathLike | None = None,
     clock_rate: ClockRateCorrection | None = None,
     strict: bool = False,
-    ultrasonic: Mapping[str, Any] | None = None,
+    ultrasonic: OneWaySetup | EchoSetup | Mapping[str, Any] | None = None,
     progress: ProgressFn | None = None,
     report: Callable[[str], None] | None = None,
 ) -> RangeRun:
@@ -215,11 +215,12 @@ def run_range(
         Never a doubtful distance: one two-way exchange raises UnreliableResultError;
         series and one-way / echo rows are withheld (empty distance, flag ``withheld``)
         and :meth:`RangeRun.finish` raises after they are written.
-    ultrasonic : mapping, optional
-        One-way / echo: the keyword arguments of
-        :func:`~rangekit.ranging.ultrasonic.range_ultrasonic_files` other than
-        ``scheme``, ``probe``, ``calibration``, ``temp_c`` and ``speed_m_s`` (``period_s``
-        required with ``series``).
+    ultrasonic : OneWaySetup or EchoSetup, optional
+        One-way / echo: the job's configuration (:mod:`rangekit.ranging.config`), of the
+        scheme's type [default: ``OneWaySetup()`` or ``EchoSetup()``]; ``period_s``
+        required with ``series``. A mapping of the keyword arguments of
+        :func:`~rangekit.ranging.ultrasonic.range_ultrasonic_files` (other than
+        ``scheme``, ``probe``, ``calibration``, ``temp_c``, ``speed_m_s``) is accepted too.
     progress : callable, optional
         ``progress(done_s, total_s)`` once per block of a series.
     report : callable, optional
@@ -265,7 +266,7 @@ def run_range(
     from rangekit.io.results import tof_fields
     from rangekit.ranging.series import SERIES_FIELDS
 
-    args = {**dict(ultrasonic or {}), **medium.kwargs()}
+    args = {**_ultrasonic_kwargs(scheme, ultrasonic), **medium.kwargs()}
     if series is not None:
         from rangekit.ranging.series import range_series_ultrasonic
 
@@ -294,6 +295,21 @@ def run_range(
     withheld = [r for r in out if withhold_doubtful(r)] if strict else []
     fields = tuple(tof_fields(scheme))
     return RangeRun(scheme, False, fields, meta, names, [out], None, withheld, len(out))
+
+
+def _ultrasonic_kwargs(scheme: str, cfg) -> dict:
+    """The keywords of ``range_ultrasonic_files`` from the scheme's configuration."""
+    kind = OneWaySetup if scheme == "oneway" else EchoSetup
+    if cfg is None:
+        cfg = kind()
+    if isinstance(cfg, (OneWaySetup, EchoSetup)):
+        if not isinstance(cfg, kind):
+            raise InvalidParameterError(
+                f"ultrasonic={type(cfg).__name__}(...) does not describe scheme={scheme!r}: "
+                f"give a {kind.__name__}"
+            )
+        return cfg.kwargs()
+    return dict(cfg)
 
 
 def _two_way(files, names, meta, *, medium, setup, series, beep, detector, probe, calibration,
