@@ -441,3 +441,30 @@ def test_a_burst_like_blip_one_spacing_early_does_not_move_the_beep(amp):
     x += 0.01 * np.random.default_rng(0).standard_normal(len(x))
     arr = cp.detect_changepoint(x, fs=b.fs, beep=b)
     assert len(arr) == 1 and abs(arr.onset[0] - 10000.4) < 0.3  # measured -0.12
+
+
+def test_compiled_beep_loop_searches_the_reference_window_anchor_by_anchor():
+    """One anchor at a time, at offsets spanning the documented search window (onset -
+    anchor from -(n_win/2 + lookback) + taper to n_win + hop - taper: -217 ... 139 here):
+    the compiled loop finds the beep exactly where the numpy reference does, with the
+    same numbers, and neither finds it just outside (the window's ends measured)."""
+    b = Beep()
+    t = np.arange(30000) / b.fs
+    x = 0.3 * beep_continuous(t - 3000.4 / b.fs, beep=b)
+    x += 0.01 * np.random.default_rng(0).standard_normal(len(x))
+    n_win, hop, e, _, _ = cp._candidates(
+        x, fs=b.fs, beep=b, win_s=cp.WIN_S, hop_s=cp.HOP_S, threshold_db=6.0, rise_db=10.0
+    )
+    kw = {"fs": b.fs, "beep": b, "n_win": n_win, "hop": hop, "background": True,
+          "min_bursts": 3, "quiet": 0.0, "oob": False}  # fmt: skip
+    ref_cond = cp._conditioner(x, fs=b.fs, beep=b, condition=True)
+    fast_cond = cp._conditioner(x, fs=b.fs, beep=b, condition=True, compiled=True)
+    for off, found in ((-218, False), (-217, True), (0, True), (139, True), (140, False)):
+        ref = cp._beep_row(ref_cond, 3000 - off, e, cp._Found(), **kw)
+        fast = cp._rows_compiled(fast_cond, np.array([3000 - off]), e, **kw)
+        assert (ref is not None) == found == (len(fast) == 1), off
+        if found:
+            assert abs(ref[0] - 3000.4) < 0.3  # measured -0.14
+            np.testing.assert_allclose(fast[0][:4], ref[:4], rtol=1e-9, atol=1e-6)
+            np.testing.assert_allclose(fast[0][4], ref[4], rtol=0, atol=1e-6)
+            assert fast[0][5] == ref[5]
