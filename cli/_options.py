@@ -55,12 +55,29 @@ class QOrAuto(click.ParamType):
         return v
 
 
-def transducer_q_options(type_: click.ParamType, default, help: str):
+class LazyHelpOption(click.Option):
+    """A click option whose help text is built when help is shown (``lazy_help``, a
+    function returning it): a text that reads library defaults then imports the library
+    only for ``--help``, not whenever the command module is loaded."""
+
+    def __init__(self, *args, lazy_help=None, **kw) -> None:
+        super().__init__(*args, **kw)
+        self._lazy_help = lazy_help
+
+    def get_help_record(self, ctx):
+        if self._lazy_help is not None:
+            self.help, self._lazy_help = self._lazy_help(), None
+        return super().get_help_record(ctx)
+
+
+def transducer_q_options(type_: click.ParamType, default, help):
     """``--transducer-q`` (parameter ``q``) and the old ``--q``, hidden, kept for one release.
 
     The old spelling gives the same value with a one-line deprecation note on stderr;
-    both at once are a usage error (exit 2). Returns a decorator.
+    both at once are a usage error (exit 2). ``help`` is a text, or a function returning
+    it (built when help is shown: :class:`LazyHelpOption`). Returns a decorator.
     """
+    lazy = {"cls": LazyHelpOption, "lazy_help": help} if callable(help) else {"help": help}
 
     def deco(f):
         @click.option(
@@ -69,7 +86,7 @@ def transducer_q_options(type_: click.ParamType, default, help: str):
             type=type_,
             default=default,
             show_default=default is not None,
-            help=help,
+            **lazy,
         )
         @click.option("--q", "q_deprecated", type=type_, default=None, hidden=True)
         @functools.wraps(f)

@@ -8,20 +8,37 @@ whose defaults are the library's (the help texts read them there too). Used by `
 
 from __future__ import annotations
 
+import functools
 from dataclasses import replace
+from typing import TYPE_CHECKING
 
 import click
 from rangekit_cli._options import (
     FiniteRange,
+    LazyHelpOption,
     QOrAuto,
     float_list,
     shown_default,
     transducer_q_options,
 )
 
-from rangekit.ranging.config import Detection, EchoSetup, OneWaySetup
+if TYPE_CHECKING:
+    from rangekit.ranging.config import EchoSetup, OneWaySetup
 
-_OW, _EC = OneWaySetup(), EchoSetup()
+
+@functools.cache
+def _defaults() -> tuple[OneWaySetup, EchoSetup]:
+    """The library's default one-way and echo objects (imported on first use, for help or
+    a run, not whenever a command module is loaded: ``plot`` stays light)."""
+    from rangekit.ranging.config import EchoSetup, OneWaySetup
+
+    return OneWaySetup(), EchoSetup()
+
+
+def _help(make):
+    """``cls`` and ``lazy_help`` of an option whose help shows the library defaults:
+    ``make(oneway, echo)`` returns the text, built when help is shown."""
+    return {"cls": LazyHelpOption, "lazy_help": lambda: make(*_defaults())}
 
 
 def _chips(code: tuple[int, ...]) -> str:
@@ -45,15 +62,18 @@ def _m(v: float) -> str:
 
 def ultrasonic_options(f):
     """Options of the ultrasonic schemes (oneway, echo) of ``rangekit range``."""
-    q = _OW.transducer.q
     opts = [
         click.option(
             "--latency",
             type=FiniteRange(0.0, 10.0),
             default=None,
             metavar="S",
-            help="oneway: system latency from the trigger to the drive, s, subtracted "
-            f"{shown_default(_OW.latency_s)}.",
+            **_help(
+                lambda ow, ec: (
+                    "oneway: system latency from the trigger to the drive, s, "
+                    f"subtracted {shown_default(ow.latency_s)}."
+                )
+            ),
         ),
         click.option(
             "--period",
@@ -74,8 +94,12 @@ def ultrasonic_options(f):
             "--channels",
             type=click.IntRange(1, 1024),
             default=None,
-            help="Channel count every file must have "
-            f"{_both(f'{_OW.channels} receivers', _EC.channels or 'any')}.",
+            **_help(
+                lambda ow, ec: (
+                    "Channel count every file must have "
+                    f"{_both(f'{ow.channels} receivers', ec.channels or 'any')}."
+                )
+            ),
         ),
         click.option(
             "--min-range",
@@ -83,8 +107,12 @@ def ultrasonic_options(f):
             type=FiniteRange(0.0, 1000.0),
             default=None,
             metavar="M",
-            help="Shortest distance searched, m "
-            f"{_both(_m(_OW.min_range_m), _m(_EC.min_range_m) + ', the SRF02 ring-down')}.",
+            **_help(
+                lambda ow, ec: (
+                    "Shortest distance searched, m "
+                    f"{_both(_m(ow.min_range_m), _m(ec.min_range_m) + ', the SRF02 ring-down')}."
+                )
+            ),
         ),
         click.option(
             "--max-range",
@@ -92,44 +120,64 @@ def ultrasonic_options(f):
             type=FiniteRange(0.01, 1000.0),
             default=None,
             metavar="M",
-            help="Longest distance searched, m "
-            f"{_both(_m(_OW.max_range_m), _m(_EC.max_range_m) + ' (the SRF02)')}.",
+            **_help(
+                lambda ow, ec: (
+                    "Longest distance searched, m "
+                    f"{_both(_m(ow.max_range_m), _m(ec.max_range_m) + ' (the SRF02)')}."
+                )
+            ),
         ),
         transducer_q_options(
             QOrAuto(),
             None,
-            "oneway: Q of the Tx and Rx transducers. auto = unknown: every arrival is "
-            f"timed by fitting the burst through resonators of unknown Q (from {q:g}) and f0 "
-            "(with overlapping reflections), the estimates pooled per receiver and "
-            "transmitter; Q = known, folded into the template; 0 = the bare drive (the "
-            "transducers' delay stays in the ranges) [default: auto]. echo: the template's "
-            f"Q (auto = {_EC.transducer.q:g}).",
+            lambda: _q_help(*_defaults()),
         ),
         click.option(
             "--code",
             default=None,
             metavar="N|+-...",
-            help="Emitted code: a Barker length (2,3,4,5,7,11,13) or chips as + and - "
-            f"{_both(_chips(_OW.burst.code), _chips(_EC.burst.code))}.",
+            **_help(
+                lambda ow, ec: (
+                    "Emitted code: a Barker length (2,3,4,5,7,11,13) or chips as "
+                    f"+ and - {_both(_chips(ow.burst.code), _chips(ec.burst.code))}."
+                )
+            ),
         ),
         click.option(
             "--carrier",
             type=FiniteRange(1.0, 1e7),
             default=None,
-            help=f"Carrier, Hz {_both(_OW.burst.carrier_hz, _EC.burst.carrier_hz)}.",
+            **_help(
+                lambda ow, ec: f"Carrier, Hz {_both(ow.burst.carrier_hz, ec.burst.carrier_hz)}."
+            ),
         ),
         click.option(
             "--cycles-per-bit",
             "cycles_per_bit",
             type=click.IntRange(1, 1000),
             default=None,
-            help="Carrier cycles per chip "
-            f"{_both(_OW.burst.cycles_per_bit, _EC.burst.cycles_per_bit)}.",
+            **_help(
+                lambda ow, ec: (
+                    "Carrier cycles per chip "
+                    f"{_both(ow.burst.cycles_per_bit, ec.burst.cycles_per_bit)}."
+                )
+            ),
         ),
     ]
     for o in reversed(opts):
         f = o(f)
     return f
+
+
+def _q_help(ow, ec) -> str:
+    return (
+        "oneway: Q of the Tx and Rx transducers. auto = unknown: every arrival is timed by "
+        f"fitting the burst through resonators of unknown Q (from {ow.transducer.q:g}) and f0 "
+        "(with overlapping reflections), the estimates pooled per receiver and transmitter; "
+        "Q = known, folded into the template; 0 = the bare drive (the transducers' delay "
+        "stays in the ranges) [default: auto]. echo: the template's Q (auto = "
+        f"{ec.transducer.q:g})."
+    )
 
 
 def make_burst(kw: dict, *, scheme: str):
@@ -138,7 +186,7 @@ def make_burst(kw: dict, *, scheme: str):
     this only defers the Nyquist check to the file)."""
     from rangekit.signals.barker import BARKER_CODES
 
-    base = (_EC if scheme == "echo" else _OW).burst
+    base = _defaults()[scheme == "echo"].burst
     code = kw.get("code")
     chips = base.code
     if code is None:
@@ -180,6 +228,7 @@ def ultrasonic_setup(kw: dict, *, scheme: str) -> OneWaySetup | EchoSetup:
     which, like one-way-only options with ``scheme="echo"``, are usage errors naming the
     option). Only the options given reach the object: the rest are its defaults.
     """
+    from rangekit.ranging.config import Detection, EchoSetup, OneWaySetup
     from rangekit.signals.transducer import Transducer
 
     for k, opt in _BEEP_ONLY.items():

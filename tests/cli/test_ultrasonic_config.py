@@ -130,3 +130,14 @@ def test_cli_refuses_options_of_another_scheme(recs):
     assert_error(res, 2, "--latency", "oneway")
     res = run(["range", "--scheme", "oneway", recs["ow"], "--freq", 1000, "--no-setup"])
     assert_error(res, 2, "--freq", "beepbeep")
+
+
+def test_loading_plot_does_not_import_ranging():
+    """The help texts read the library defaults only when help is shown (LazyHelpOption):
+    ``rangekit plot`` loads no ranging code (it did, 0.3 s, when they were read at import)."""
+    import subprocess
+    import sys
+
+    code = "import sys, rangekit_cli.plot_cmd; print('rangekit.ranging' in sys.modules)"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.split() == ["False"]
