@@ -57,6 +57,7 @@ from __future__ import annotations
 
 import functools
 import math
+import sys
 from dataclasses import dataclass
 
 import numpy as np
@@ -97,15 +98,35 @@ MAX_ITER = 30
 
 
 def _ifft(a, n, axis=-1):
+    """``scipy.fft.ifft(a, n, axis)``; a 1-d or last-axis input shorter than ``n`` is
+    zero-padded here and transformed by pocketfft directly (the same call scipy makes:
+    the same numbers, without its per-call argument handling)."""
+    a = np.asarray(a)
+    if a.ndim and axis in (-1, a.ndim - 1) and a.shape[-1] <= n and _POCKET is not None:
+        buf = np.zeros((*a.shape[:-1], n), dtype=np.complex128)
+        buf[..., : a.shape[-1]] = a
+        return _POCKET.c2c(buf, (a.ndim - 1,), False, 2, buf, 1)
     from scipy import fft
 
     return fft.ifft(a, n=n, axis=axis)
 
 
 def _rfft(a, n):
+    """``scipy.fft.rfft(a, n)`` of a real 1-d ``a`` (pocketfft directly, as :func:`_ifft`)."""
+    a = np.asarray(a)
+    if a.ndim == 1 and len(a) <= n and a.dtype == np.float64 and _POCKET is not None:
+        buf = np.zeros(n)
+        buf[: len(a)] = a
+        return _POCKET.r2c(buf, (0,), True, 0, None, 1)
     from scipy import fft
 
     return fft.rfft(a, n=n)
+
+
+try:
+    from scipy.fft._pocketfft import pypocketfft as _POCKET
+except ImportError:  # pragma: no cover - another scipy layout: the public calls
+    _POCKET = None
 
 
 def _next_pow2(n: int) -> int:
@@ -465,6 +486,7 @@ class _State:
     gram_inv: np.ndarray  # (basis^T basis)^-1
     jac: np.ndarray  # d model / d (u_1..u_K, [theta]), unprojected
     with_theta: bool
+    jp: np.ndarray | None = None  # the projected Jacobian, when computed with the state
 
 
 def _evaluate(x: np.ndarray, model, u: np.ndarray, theta: np.ndarray, with_theta: bool) -> _State:
@@ -477,37 +499,108 @@ def _evaluate(x: np.ndarray, model, u: np.ndarray, theta: np.ndarray, with_theta
     else:
         s = model.spectrum_t(theta)
         base = np.array([s, s * model._mjw])
+    nb, nl = base.shape
     ph = np.exp(np.multiply.outer(u, model._mjw))  # (k, L)
-    specs = (base[:, None, :] * ph[None, :, :]).reshape(len(base) * k, -1)
-    rows = _ifft(specs, n=model.n_fft, axis=1)[:, :n]
-    wa = rows[:k]
+    # Rows IFFT(base_b exp(-j w u_i))[:n]: the one-sided products written into a
+    # zero-padded grid and transformed in place (pocketfft, as scipy.fft.ifft(n=n_fft)
+    # calls it: the same numbers without its per-call argument handling).
+    buf = np.zeros((nb, k, model.n_fft), dtype=np.complex128)
+    np.multiply(base[:, None, :], ph[None, :, :], out=buf[:, :, :nl])
+    rows = _c2c_inverse(buf)
+    if _use_kernel(x):
+        from rangekit.detect._pathfit_kernels import call
+
+        ok, basis, gi, a, r, cost, jac, jp = call("vp", rows, x, n)
+        if ok:
+            return _State(u, theta, cost, a, r, basis, gi, jac, with_theta, jp)
+    return _evaluate_np(x, rows[:, :, :n], u, theta, with_theta)
+
+
+def _use_kernel(x: np.ndarray) -> bool:
+    """Whether :func:`_evaluate` runs the compiled step: numba already imported (by the
+    one-way pipeline's matched filter on a long recording: no import for a short one),
+    ``x`` contiguous float64, and not disabled (``USE_KERNEL``)."""
+    return USE_KERNEL and "numba" in sys.modules and x.dtype == np.float64 and x.flags.c_contiguous
+
+
+#: Run the compiled step (:mod:`rangekit.detect._pathfit_kernels`) where numba is loaded.
+USE_KERNEL = True
+
+
+def _evaluate_np(x: np.ndarray, rows: np.ndarray, u, theta, with_theta: bool) -> _State:
+    """The numpy reference of :func:`_evaluate` after its inverse FFTs (``rows``:
+    ``(nb, k, n)`` waveforms and derivatives) and of the compiled step."""
+    n, k = rows.shape[2], rows.shape[1]
+    nb = rows.shape[0]
+    wa = rows[0]
     basis = np.empty((n, 2 * k))
     basis[:, 0::2] = wa.real.T
     basis[:, 1::2] = wa.imag.T
     # Normal equations: the paths are kept MIN_SEP resolutions apart, so the Gram matrix
     # of their (in-phase, quadrature) columns is well conditioned.
+    gram = basis.T @ basis
     try:
-        gi = np.linalg.inv(basis.T @ basis)
+        gi = np.linalg.inv(gram)
     except np.linalg.LinAlgError:
-        gi = np.linalg.pinv(basis.T @ basis)
+        gi = np.linalg.pinv(gram)
     a = gi @ (basis.T @ x)
     r = x - basis @ a
     ar, ai = a[0::2, None], a[1::2, None]
-
-    def comb(block: np.ndarray) -> np.ndarray:
-        return ar * block.real + ai * block.imag
-
-    cols = list(comb(rows[k : 2 * k]))  # d/du_k: the path's own derivative only
-    if with_theta:
-        for i in range(len(base) - 2):
-            cols.append(comb(rows[(2 + i) * k : (3 + i) * k]).sum(axis=0))
+    jac = np.empty((n, k + nb - 2))
+    # d/du_k: the path's own derivative only; d/dtheta: the sum over the paths.
+    jac[:, :k] = (ar * rows[1].real + ai * rows[1].imag).T
+    if nb > 2:
+        jac[:, k:] = (ar * rows[2:].real + ai * rows[2:].imag).sum(axis=1).T
     cost = float(r @ r) if np.all(np.isfinite(r)) else math.inf
-    return _State(u, theta, cost, a, r, basis, gi, np.array(cols).T, with_theta)
+    return _State(u, theta, cost, a, r, basis, gi, jac, with_theta)
+
+
+def _c2c_inverse(buf: np.ndarray) -> np.ndarray:
+    """In-place inverse FFT (1/n normalised) of ``buf``'s last axis."""
+    if _POCKET is None:  # pragma: no cover - another scipy layout: the public call
+        return _ifft(buf, n=buf.shape[-1], axis=-1)
+    return _POCKET.c2c(buf, (buf.ndim - 1,), False, 2, buf, 1)
 
 
 def _projected(st: _State) -> np.ndarray:
     """Kaufman's variable-projection Jacobian: the model Jacobian off the amplitudes."""
+    if st.jp is not None:
+        return st.jp
     return st.jac - st.basis @ (st.gram_inv @ (st.basis.T @ st.jac))
+
+
+def _lm_step_np(jp: np.ndarray, r: np.ndarray, p: int, lam: float, lim: np.ndarray):
+    """One Levenberg-Marquardt proposal (the numpy reference of the compiled
+    ``lm_step``): ``(g^T (J^T J)^-1 g`` or nan if singular, the damping the step was
+    solved at (``>= 1e8``: none), the step scaled so no parameter exceeds ``lim``)."""
+    jp = jp[:, :p]
+    jtj = jp.T @ jp
+    g = jp.T @ r
+    d = np.diag(jtj).copy()
+    d[d <= 0] = 1.0
+    try:
+        gn = float(g @ np.linalg.solve(jtj, g))
+    except np.linalg.LinAlgError:
+        gn = math.nan
+    step = np.zeros(p)
+    while lam < 1e8:
+        try:
+            step = np.linalg.solve(jtj + lam * np.diag(d), g)
+        except np.linalg.LinAlgError:
+            lam *= 10.0
+            continue
+        # One scale for the whole step keeps its direction (onset and Q are coupled).
+        step = step * min(1.0, float(np.min(lim / np.maximum(np.abs(step), 1e-300))))
+        break
+    return gn, lam, step
+
+
+def _lm_step(jp, r, p, lam, lim, kernel: bool):
+    if kernel:
+        from rangekit.detect._pathfit_kernels import call
+
+        return call("lm_step", np.ascontiguousarray(jp), r, p, float(lam), lim)
+    return _lm_step_np(jp, r, p, lam, lim)
 
 
 def fit_paths(
@@ -540,25 +633,13 @@ def fit_paths(
     jp = _projected(st)[:, :p]
     lam = 1e-3
     lim = np.concatenate([np.full(k, 4.0), model.theta_step() if fit_theta else []])
+    kernel = _use_kernel(x)
     for _ in range(max_iter):
-        jtj = jp.T @ jp
-        g = jp.T @ st.r
-        d = np.diag(jtj).copy()
-        d[d <= 0] = 1.0
-        try:
-            if float(g @ np.linalg.solve(jtj, g)) < tol:
-                break  # the Gauss-Newton step would gain less than tol: converged
-        except np.linalg.LinAlgError:
-            pass
+        gn, lam, step = _lm_step(jp, st.r, p, lam, lim, kernel)
+        if gn < tol:
+            break  # the Gauss-Newton step would gain less than tol: converged
         accepted = None
         while lam < 1e8:
-            try:
-                step = np.linalg.solve(jtj + lam * np.diag(d), g)
-            except np.linalg.LinAlgError:
-                lam *= 10.0
-                continue
-            # One scale for the whole step keeps its direction (onset and Q are coupled).
-            step = step * min(1.0, float(np.min(lim / np.maximum(np.abs(step), 1e-300))))
             nu = np.clip(st.u + step[:k], u_lo, u_hi)
             nth = model.theta_clip(st.theta + step[k:]) if fit_theta else st.theta
             cand = _evaluate(x, model, nu, nth, fit_theta)
@@ -567,6 +648,8 @@ def fit_paths(
                 lam = max(lam / 3.0, 1e-9)
                 break
             lam *= 10.0
+            if lam < 1e8:
+                _, lam, step = _lm_step(jp, st.r, p, lam, lim, kernel)
         if accepted is None:
             break
         small = np.all(np.abs(accepted.u - st.u) < 1e-4) and np.all(
