@@ -240,6 +240,10 @@ def test_beep_taps_pass_the_beep_and_remove_dc_and_hum(f_hz, taper):
     for f in (b.f_hz, b.f_hz + b.edge_bandwidth_hz, max(0.1 * f_hz, b.f_hz - b.edge_bandwidth_hz)):
         assert gain(f) == pytest.approx(1.0, abs=2e-3)
     assert gain(0.0) < 2e-3 and gain(50.0) < 2e-3
+    if f_hz - 2 * b.edge_bandwidth_hz > 1500.0:
+        # the stop band starts one transition (1500 Hz) below the pass band (measured
+        # 6.6e-4 for the default beep; half of the noise there would pass at 3000 Hz)
+        assert gain(f_hz - 2 * b.edge_bandwidth_hz - 1500.0) < 1.5e-3
 
 
 def test_find_bursts_times_every_burst_of_a_beep():
