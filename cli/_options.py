@@ -58,7 +58,8 @@ class QOrAuto(click.ParamType):
 class LazyHelpOption(click.Option):
     """A click option whose help text is built when help is shown (``lazy_help``, a
     function returning it): a text that reads library defaults then imports the library
-    only for ``--help``, not whenever the command module is loaded."""
+    only for ``--help``, not whenever the command module is loaded. A callable default
+    (the library's constant, read when the command runs) is shown as its value."""
 
     def __init__(self, *args, lazy_help=None, **kw) -> None:
         super().__init__(*args, **kw)
@@ -67,7 +68,25 @@ class LazyHelpOption(click.Option):
     def get_help_record(self, ctx):
         if self._lazy_help is not None:
             self.help, self._lazy_help = self._lazy_help(), None
-        return super().get_help_record(ctx)
+        if not callable(self.default):
+            return super().get_help_record(ctx)
+        lazy, self.default = self.default, self.default()
+        try:
+            return super().get_help_record(ctx)
+        finally:
+            self.default = lazy
+
+
+def _temp_c() -> float:
+    from rangekit.physics import DEFAULT_TEMP_C
+
+    return DEFAULT_TEMP_C
+
+
+def _clock_ppm() -> float:
+    from rangekit.ranging.beepbeep import DEFAULT_CLOCK_PPM
+
+    return DEFAULT_CLOCK_PPM
 
 
 def transducer_q_options(type_: click.ParamType, default, help):
@@ -198,7 +217,8 @@ def temperature_option(f):
         "--temperature",
         "temp_c",
         type=FiniteRange(-60.0, 60.0),
-        default=20.0,
+        cls=LazyHelpOption,
+        default=_temp_c,  # rangekit.physics.DEFAULT_TEMP_C
         show_default=True,
         help="Air temperature, C.",
     )(f)
@@ -519,7 +539,8 @@ def clock_ppm_option(help: str):
         "--clock-ppm",
         "clock_ppm",
         type=FiniteRange(0.0, 1e4),
-        default=30.0,
+        cls=LazyHelpOption,
+        default=_clock_ppm,  # rangekit.ranging.beepbeep.DEFAULT_CLOCK_PPM
         show_default=True,
         help=help,
     )

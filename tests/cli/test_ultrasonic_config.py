@@ -141,3 +141,18 @@ def test_loading_plot_does_not_import_ranging():
     code = "import sys, rangekit_cli.plot_cmd; print('rangekit.ranging' in sys.modules)"
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.split() == ["False"]
+
+
+def test_temperature_and_clock_ppm_defaults_are_the_librarys(monkeypatch):
+    """--temperature and --clock-ppm read rangekit.physics.DEFAULT_TEMP_C and
+    rangekit.ranging.beepbeep.DEFAULT_CLOCK_PPM when the command runs or shows help."""
+    import rangekit.physics
+    import rangekit.ranging.beepbeep
+
+    monkeypatch.setattr(rangekit.physics, "DEFAULT_TEMP_C", 21.5)
+    monkeypatch.setattr(rangekit.ranging.beepbeep, "DEFAULT_CLOCK_PPM", 31.5)
+    text = " ".join(ok(run(["range", "--help"])).stdout.split())
+    assert "Air temperature, C. [default: 21.5;" in text and "[default: 31.5;" in text
+    # A run uses them: calibrate's --verbose names c before it reads the (missing) file.
+    r = run(["calibrate", "--scheme", "oneway", "-v", "--distance", 1, "none.wav", "-o", "c.json"])
+    assert f"c = {rangekit.physics.speed_of_sound_m_s(21.5):.2f} m/s" in r.stderr
