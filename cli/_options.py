@@ -67,7 +67,7 @@ class LazyHelpOption(click.Option):
 
     def get_help_record(self, ctx):
         if self._lazy_help is not None:
-            self.help, self._lazy_help = self._lazy_help(), None
+            self.help = self._lazy_help()
         if not callable(self.default):
             return super().get_help_record(ctx)
         lazy, self.default = self.default, self.default()
@@ -123,6 +123,18 @@ def transducer_q_options(type_: click.ParamType, default, help):
     return deco
 
 
+def _beep_help(text: str, name: str) -> dict:
+    """An option help ending in the default of :class:`rangekit.signals.Beep`'s ``name``,
+    read when help is shown (:class:`LazyHelpOption`)."""
+
+    def make() -> str:
+        from rangekit.signals import Beep
+
+        return f"{text} {shown_default(getattr(Beep(), name))}."
+
+    return {"cls": LazyHelpOption, "lazy_help": make}
+
+
 def beep_options(f):
     """--freq/--bursts/--spacing/--burst-len/--taper/--beep-fs: the beep that was played."""
     opts = [
@@ -131,40 +143,44 @@ def beep_options(f):
             "f_hz",
             type=FiniteRange(1.0, 1e7),
             default=None,
-            help="Beep frequency in Hz [default: 16000].",
+            **_beep_help("Beep frequency in Hz", "f_hz"),
         ),
         click.option(
             "--bursts",
             "n_bursts",
             type=click.IntRange(1, 64),
             default=None,
-            help="Bursts per beep, at most 64 (the detectors' work grows with it) [default: 4].",
+            **_beep_help(
+                "Bursts per beep, at most 64 (the detectors' work grows with it)", "n_bursts"
+            ),
         ),
         click.option(
             "--spacing",
             type=click.IntRange(1, 10**7),
             default=None,
-            help="Samples between burst starts; the whole beep lasts at most 10 s [default: 5000].",
+            **_beep_help(
+                "Samples between burst starts; the whole beep lasts at most 10 s", "spacing"
+            ),
         ),
         click.option(
             "--burst-len",
             "burst_len",
             type=click.IntRange(8, 10**7),
             default=None,
-            help="Samples per burst [default: 441].",
+            **_beep_help("Samples per burst", "burst_len"),
         ),
         click.option(
             "--taper",
             type=click.IntRange(0, 10**7),
             default=None,
-            help="Raised-cosine taper samples at each end [default: 22].",
+            **_beep_help("Raised-cosine taper samples at each end", "taper"),
         ),
         click.option(
             "--beep-fs",
             "beep_fs",
             type=FiniteRange(1000.0, 1e7),
             default=None,
-            help="Sample rate the beep is defined at, Hz [default: 44100].",
+            **_beep_help("Sample rate the beep is defined at, Hz", "fs"),
         ),
     ]
     for o in reversed(opts):

@@ -156,3 +156,22 @@ def test_temperature_and_clock_ppm_defaults_are_the_librarys(monkeypatch):
     # A run uses them: calibrate's --verbose names c before it reads the (missing) file.
     r = run(["calibrate", "--scheme", "oneway", "-v", "--distance", 1, "none.wav", "-o", "c.json"])
     assert f"c = {rangekit.physics.speed_of_sound_m_s(21.5):.2f} m/s" in r.stderr
+
+
+def test_beep_option_help_reads_the_beep_defaults(monkeypatch):
+    """The beep options' help shows :class:`rangekit.signals.Beep`'s defaults (read when
+    help is shown), not copies."""
+    from dataclasses import dataclass
+
+    import rangekit.signals
+
+    @dataclass(frozen=True)
+    class Beep(rangekit.signals.Beep):
+        f_hz: float = 17500.0
+        taper: int = 30
+
+    monkeypatch.setattr(rangekit.signals, "Beep", Beep)
+    text = " ".join(ok(run(["range", "--help"])).stdout.split())
+    assert "Beep frequency in Hz [default: 17500]" in text
+    assert "Raised-cosine taper samples at each end [default: 30]" in text
+    assert "Samples per burst [default: 441]" in text
