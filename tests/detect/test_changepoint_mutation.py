@@ -473,3 +473,20 @@ def test_compiled_beep_loop_searches_the_reference_window_anchor_by_anchor():
             np.testing.assert_allclose(fast[0][:4], ref[:4], rtol=1e-9, atol=1e-6)
             np.testing.assert_allclose(fast[0][4], ref[4], rtol=0, atol=1e-6)
             assert fast[0][5] == ref[5]
+
+
+def test_noise_floor_is_local_to_quarter_second_stretches_and_ignores_a_burst():
+    """``_floor``: the band energy's noise level per FLOOR_BLOCK_S (0.25 s) stretch, from
+    its 20th percentile: a 20-frame burst 40 dB up does not raise the floor under it
+    (measured 1.20 for noise of mean 1), and a stretch whose noise is 20 dB up a second
+    later has its own level (measured 91 for mean 100)."""
+    rng = np.random.default_rng(0)
+    fs, hop = 44100.0, 32
+    n = int(fs / hop)  # one second of frames
+    e = rng.exponential(1.0, 2 * n)
+    e[n:] *= 100.0
+    e[300:320] = 1e4
+    f = cp._floor(e, fs=fs, hop=hop)
+    assert np.all((f[300:320] > 0.6) & (f[300:320] < 2.0))
+    assert 0.6 < f[100] < 2.0  # measured 1.33
+    assert 50.0 < f[n + 400] < 200.0
