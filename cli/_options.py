@@ -517,14 +517,6 @@ def emit(text: str, output: str | None) -> None:
         write_text_atomic(output, text)
 
 
-def ultrasonic_kwargs(kw: dict, *, scheme: str, temp_c: float, speed: float | None) -> dict:
-    """:func:`rangekit_cli.ultrasonic_options.ultrasonic_kwargs`: the one-way / echo
-    configuration object of the options, as keywords (kept here for ``range``)."""
-    from rangekit_cli.ultrasonic_options import ultrasonic_kwargs as kwargs
-
-    return kwargs(kw, scheme=scheme, temp_c=temp_c, speed=speed)
-
-
 def self_distance_option(help: str):
     """--self-distance M[,M...] (string; parse with :func:`float_list`)."""
     return click.option(

@@ -16,7 +16,6 @@ from rangekit_cli._options import (
     note,
     progress,
     refuse_beep_options,
-    ultrasonic_kwargs,
     warn,
 )
 from rangekit_cli.range_options import (
@@ -30,6 +29,7 @@ from rangekit_cli.range_options import (
     refuse_ultrasonic_options,
 )
 from rangekit_cli.range_setup import apply_setup
+from rangekit_cli.ultrasonic_options import ultrasonic_setup
 
 from rangekit.io.stream import RowWriter
 
@@ -119,7 +119,7 @@ def range_cmd(
     if scheme == "beepbeep":
         job.update(_two_way(self_distance, clock_ppm, detector, clock_rate, cal, probe, kw))
     else:
-        job["ultrasonic"] = _ultrasonic(files, scheme, temp_c, speed, series, probe, kw)
+        job["ultrasonic"] = _ultrasonic(files, scheme, series, probe, kw)
     _run(files, job, fmt, output)
 
 
@@ -149,17 +149,18 @@ def _two_way(self_distance, clock_ppm, detector, clock_rate, cal, probe, kw) -> 
     return out
 
 
-def _ultrasonic(files, scheme, temp_c, speed, series, probe, kw) -> dict:
-    """run_range's one-way / echo keyword arguments from the options."""
-    args = ultrasonic_kwargs(kw, scheme=scheme, temp_c=temp_c, speed=speed)
-    del args["temp_c"], args["speed_m_s"]  # the Medium's
+def _ultrasonic(files, scheme, series, probe, kw):
+    """run_range's one-way / echo configuration object from the options."""
+    from dataclasses import replace
+
+    setup = ultrasonic_setup(kw, scheme=scheme)
     if probe is not None and kw.get("channels") is None:
-        args["channels"] = None  # a lab's probe: any number of receivers unless --channels says
+        setup = replace(setup, channels=None)  # a lab's probe: any number of receivers
     if series and len(files) != 1:
         raise click.UsageError(f"--series --scheme {scheme} takes one FILE, got {len(files)}")
-    if series and args["period_s"] is None:
+    if series and setup.period_s is None:
         raise click.UsageError(f"--series --scheme {scheme} needs --period")
-    return args
+    return setup
 
 
 def _bar(total_s: float):
