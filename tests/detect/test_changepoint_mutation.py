@@ -490,3 +490,35 @@ def test_noise_floor_is_local_to_quarter_second_stretches_and_ignores_a_burst():
     assert np.all((f[300:320] > 0.6) & (f[300:320] < 2.0))
     assert 0.6 < f[100] < 2.0  # measured 1.33
     assert 50.0 < f[n + 400] < 200.0
+
+
+@pytest.mark.parametrize("n_bursts", [1, 2])
+def test_one_and_two_burst_beeps_on_both_paths(n_bursts, monkeypatch):
+    """Default ``min_bursts`` is 1 for a one-burst beep and 2 (all but one, at least 2)
+    for two bursts; both are found, the compiled path giving the reference's onset."""
+    b = Beep(n_bursts=n_bursts)
+    t = np.arange(20000) / b.fs
+    x = 0.3 * beep_continuous(t - 3000.4 / b.fs, beep=b)
+    x += 0.01 * np.random.default_rng(0).standard_normal(len(x))
+    monkeypatch.setattr(K, "NUMBA_MIN_SAMPLES", 10**12)
+    ref = cp.detect_changepoint(x, fs=b.fs, beep=b)
+    monkeypatch.setattr(K, "NUMBA_MIN_SAMPLES", 0)
+    fast = cp.detect_changepoint(x, fs=b.fs, beep=b)
+    assert len(ref) == len(fast) == 1 and abs(ref.onset[0] - 3000.4) < 0.3  # measured 0.18
+    assert ref.confidence[0] == 1.0
+    np.testing.assert_allclose(fast.onset, ref.onset, rtol=0, atol=1e-6)
+
+
+def test_default_min_bursts_is_all_but_one():
+    """Four bursts, two of them blanked: the default (3 agreeing) finds nothing,
+    ``min_bursts=2`` finds the beep, flagged ``inconsistent_bursts``."""
+    b = Beep()
+    t = np.arange(30000) / b.fs
+    x = 0.3 * beep_continuous(t - 3000.4 / b.fs, beep=b)
+    for k in (2, 3):
+        x[3000 + k * b.spacing - 50 : 3000 + k * b.spacing + 600] = 0.0
+    x += 0.01 * np.random.default_rng(0).standard_normal(len(x))
+    assert len(cp.detect_changepoint(x, fs=b.fs, beep=b)) == 0
+    arr = cp.detect_changepoint(x, fs=b.fs, beep=b, min_bursts=2)
+    assert len(arr) == 1 and arr.flag_names(0) == ("inconsistent_bursts",)
+    assert arr.confidence[0] == 0.5
