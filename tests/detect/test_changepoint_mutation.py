@@ -43,6 +43,8 @@ def test_change_points_rise_strictly_above_the_threshold():
     e[30:] = 10.0 * (1 + 1e-9)
     assert cp._change_points(e, **{**kw, "floor": np.ones(40)}).tolist() == [30]
     assert cp._change_points(np.zeros(0), **kw).shape == (0,)
+    # a series above its threshold from the first frame rises there (nothing before it)
+    assert cp._change_points(np.full(40, 20.0), **{**kw, "floor": np.ones(40)}).tolist() == [0]
 
 
 def test_anchor_of_a_one_burst_beep_is_its_change_point():
