@@ -21,9 +21,6 @@ FIELDS = ("x_m", "y_m", "heading_deg", "method_used", "residual_m")
 #: Added when the distances' sigma is known (--ranges or --sigma).
 SIGMA_FIELDS = ("sigma_x_m", "sigma_y_m", "sigma_heading_deg")
 
-#: Header of the --distances CSV file.
-DISTANCE_COLUMNS = ("tx", "d1_m", "d2_m", "d3_m")
-
 
 @click.command("locate")
 @click.option(
@@ -119,10 +116,10 @@ def locate_cmd(beacons, ranges, sigma, distances, tx_items, method, d_th, r_r, f
           --format csv
       rangekit locate --beacons ow.beacons.json --ranges r.csv
     """
-    from rangekit.errors import IncompatibleInputError, InvalidParameterError
     from rangekit.io.duhllog import read_beacons
+    from rangekit.io.guard import MAX_TABLE_BYTES, is_stdin, read_stdin
     from rangekit.io.results import format_rows
-    from rangekit.localize.uhl import solve_pose
+    from rangekit.localize.locate import locate_pose, read_distance_table, read_range_rows
 
     given = [
         o for o, v in (("--distances", distances), ("--tx", tx_items), ("--ranges", ranges)) if v
@@ -135,155 +132,54 @@ def locate_cmd(beacons, ranges, sigma, distances, tx_items, method, d_th, r_r, f
         )
     if ranges is not None and sigma is not None:
         raise click.UsageError("--sigma applies to --distances and --tx (--ranges has sigma_m)")
-    sig = None
+    sig = sigma
     if distances is not None:
-        ids, d, source = _read_distances(distances)
+        source = "standard input" if is_stdin(distances) else str(distances)
+        ids, d = read_distance_table(distances, name=source)
     elif ranges is not None:
-        ids, d, sig, source = _read_ranges(ranges)
+        source = "standard input" if is_stdin(ranges) else str(ranges)
+        # Standard input is JSON when it starts with an object, else CSV.
+        js = read_stdin(MAX_TABLE_BYTES).lstrip().startswith(b"{") if is_stdin(ranges) else None
+        r = read_range_rows(ranges, name=source, json=js)
+        if r.dropped:
+            warn(
+                f"rangekit: {source}: transmitter(s) {', '.join(map(str, r.dropped))} left out "
+                "(not heard on every receiver)"
+            )
+        ids, d, sig = r.ids, r.distances_m.tolist(), r.sigma_m
     else:
         ids, d = _parse_tx(tx_items)
         source = "--tx"
-    if sigma is not None:
-        sig = [[sigma] * 3 for _ in ids]
-    bcn = read_beacons(beacons)
-    known = set(bcn.ids.tolist())
-    for t in ids:
-        if t not in known:
-            raise IncompatibleInputError(
-                f"{source}: transmitter {t} is not in the beacon file {str(beacons)!r} "
-                f"(ids: {sorted(known)})"
-            )
-    if len(ids) < 2:
-        raise IncompatibleInputError(
-            f"{source}: {len(ids)} transmitter(s) heard; UHL needs at least 2 (Kim & Kim "
-            "2013, eq (3))"
-        )
     detail(
         f"rangekit: locate: {len(ids)} transmitters ({', '.join(map(str, ids))}) from "
         f"{source}, method {method}, distance sigma "
         f"{f'{sigma:g} m' if sigma is not None else 'per range' if sig is not None else 'none'}"
     )
-    try:
-        pose = solve_pose(bcn.position(ids), d, r_R=r_r, method=method, d_th=d_th)
-    except InvalidParameterError as e:
-        # Shapes, values and options are checked above: what is left is the geometry.
-        raise IncompatibleInputError(
-            f"transmitters {', '.join(str(t) for t in ids)}: {e}".replace("tx_xyz: ", "")
-        ) from e
-    heading = math.degrees(pose.phi_rad)
-    row = {
-        "x_m": pose.x_m,
-        "y_m": pose.y_m,
-        "heading_deg": heading,
-        "method_used": pose.method_used,
-        "residual_m": pose.residual_m,
-    }
-    fields = FIELDS
-    if sig is not None:
-        import numpy as np
-
-        from rangekit.localize.uhl_cov import pose_covariance
-
-        s = np.asarray(sig, dtype=float)
-        if not np.all(np.isfinite(s)):
-            raise IncompatibleInputError(f"{source}: a distance without sigma_m")
-        cov = pose_covariance(bcn.position(ids), d, s, r_R=r_r, method=method, d_th=d_th)
-        sd = np.sqrt(np.diag(cov))
-        row.update(sigma_x_m=sd[0], sigma_y_m=sd[1], sigma_heading_deg=math.degrees(sd[2]))
-        fields = FIELDS + SIGMA_FIELDS
+    pose = locate_pose(
+        read_beacons(beacons), ids, d, sigma_m=sig, r_R=r_r, method=method, d_th=d_th,
+        source=source, beacon_file=str(beacons),
+    )  # fmt: skip
+    row = pose.row()
     if fmt == "json":
         import json
 
         obj = {
             **row,
-            "heading_rad": pose.phi_rad,
+            "heading_rad": pose.heading_rad,
             "method": method,
             "d_th_m": d_th,
             "r_R_m": r_r,
             "beacons": str(beacons),
             "tx": ids,
         }
-        if sig is not None:
-            obj["covariance"] = cov.tolist()
+        if pose.covariance is not None:
+            obj["covariance"] = pose.covariance.tolist()
         text = json.dumps(obj, indent=2) + "\n"
     else:
-        text = format_rows([row], fields, fmt)
-    emit(text, output)
-
-
-def _read_distances(path) -> tuple[list[int], list[list[float]], str]:
-    """Ids and (n, 3) distances from a ``tx,d1_m,d2_m,d3_m`` CSV file."""
-    from rangekit.errors import LogFormatError
-    from rangekit.io.csvlog import Column, read_table
-
-    spec = {"tx": Column(kind="int", nonneg=True)}
-    spec.update({c: Column(nonneg=True) for c in DISTANCE_COLUMNS[1:]})
-    name = "standard input" if str(path) == "-" else str(path)
-    tab = read_table(path, spec, name=name, allow_extra=False)
-    ids = [int(t) for t in tab["tx"].tolist()]
-    seen: set[int] = set()
-    for t in ids:
-        if t in seen:
-            raise LogFormatError(f"{name}, column 'tx': transmitter {t} appears more than once")
-        seen.add(t)
-    d = [[float(tab[c][i]) for c in DISTANCE_COLUMNS[1:]] for i in range(len(ids))]
-    return ids, d, name
-
-
-def _read_ranges(path):
-    """Ids, (n, 3) distances and sigmas from `range --scheme oneway` output (CSV or JSON)."""
-
-    from rangekit.errors import LogFormatError
-    from rangekit.io.csvlog import Column, read_table
-    from rangekit.io.guard import MAX_TABLE_BYTES, is_stdin, read_stdin
-    from rangekit.localize.uhl_cov import uhl_inputs
-
-    name = "standard input" if is_stdin(path) else str(path)
-    # Standard input is JSON when it starts with an object, else CSV.
-    stdin_json = is_stdin(path) and read_stdin(MAX_TABLE_BYTES).lstrip().startswith(b"{")
-    if name.endswith(".json") or stdin_json:
-        from rangekit.io.sidecar import read_json
-
-        obj = read_json(path)  # guarded: regular file, size, nesting, finite numbers
-        try:
-            rows = obj["ranges"]
-            cols = {k: [r[k] for r in rows] for k in ("tx", "channel", "distance_m", "sigma_m")}
-        except (ValueError, KeyError, TypeError) as e:
-            raise LogFormatError(
-                f'{name}: not the JSON of `rangekit range --scheme oneway` (a "ranges" list '
-                f"of objects with tx, channel, distance_m, sigma_m): {e}"
-            ) from None
-        tx = [-1 if v is None else v for v in cols["tx"]]
-        dist = [math.nan if v is None else v for v in cols["distance_m"]]
-        sig = [math.nan if v is None else v for v in cols["sigma_m"]]
-        bad = [v for v in (*tx, *cols["channel"]) if isinstance(v, bool) or not isinstance(v, int)]
-        if bad:
-            raise LogFormatError(f"{name}: tx and channel must be integers, got {bad[0]!r}")
-        channel = cols["channel"]
-    else:
-        spec = {
-            "tx": Column(kind="str", empty_ok=True),
-            "channel": Column(kind="int", nonneg=True),
-            "distance_m": Column(empty_ok=True, nonneg=True),
-            "sigma_m": Column(empty_ok=True, nonneg=True),
-        }
-        tab = read_table(path, spec, name=name)
-        tx = []
-        for i, v in enumerate(tab["tx"].tolist()):
-            try:
-                tx.append(-1 if v in ("", "-") else int(v))
-            except ValueError:
-                raise LogFormatError(
-                    f"{name} row {i + 1}, column 'tx': {v!r} is not an id"
-                ) from None
-        channel, dist, sig = tab["channel"], tab["distance_m"], tab["sigma_m"]
-    r = uhl_inputs(tx, channel, dist, sig, what=name)
-    if r.dropped:
-        warn(
-            f"rangekit: {name}: transmitter(s) {', '.join(map(str, r.dropped))} left out "
-            "(not heard on every receiver)"
+        text = format_rows(
+            [row], FIELDS + (SIGMA_FIELDS if pose.covariance is not None else ()), fmt
         )
-    return r.ids, r.distances_m.tolist(), r.sigma_m.tolist(), name
+    emit(text, output)
 
 
 def _parse_tx(items) -> tuple[list[int], list[list[float]]]:

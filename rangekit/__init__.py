@@ -16,7 +16,8 @@ Ranging (:mod:`rangekit.ranging`)
     :func:`fit_calibration`, :func:`read_calibration`, :class:`Calibration`; ultrasonic:
     :func:`range_oneway`, :func:`range_echo`; physics: :func:`speed_of_sound_m_s`
 Localisation and tracking (:mod:`rangekit.localize`)
-    :func:`solve_pose` (UHL), :func:`track_duhl`, :func:`track_ranges`,
+    :func:`solve_pose` (UHL), :func:`locate_pose` (``rangekit locate``),
+    :func:`track_duhl`, :func:`track_ranges`,
     :func:`track_anchors`, :func:`dead_reckon`, :func:`lmax_offline`,
     :func:`lmax_online`, :func:`track_particles`, :func:`rts_smooth`; setups:
     :class:`Rig`, :func:`read_rig`, :class:`FloorPlan`, :func:`load_floorplan`
@@ -91,6 +92,7 @@ SECTIONS: dict[str, dict[str, tuple[str, str]]] = {
     },
     "Localisation and tracking": {
         "solve_pose": ("rangekit.localize.uhl", "solve_pose"),
+        "locate_pose": ("rangekit.localize.locate", "locate_pose"),
         "track_duhl": ("rangekit.localize.duhl", "track_duhl"),
         "track_ranges": ("rangekit.localize", "track_ranges"),
         "track_anchors": ("rangekit.localize", "track_anchors"),

@@ -119,3 +119,22 @@ def test_uhl_inputs_medians_and_dropped():
     assert r.ids == [3] and r.dropped == [5]
     assert r.distances_m.tolist() == [[2.2, 2.1, 2.2]]
     assert r.sigma_m.tolist() == [[0.02, 0.02, 0.01]]
+
+
+def test_locate_is_the_library_call(tmp_path):
+    """`rangekit locate` prints what rangekit.localize.locate.locate_pose returns."""
+    from rangekit.io.duhllog import Beacons
+    from rangekit.localize.locate import locate_pose
+    from rangekit.sim.ultrasonic import receiver_positions
+
+    b = Beacons([1, 2, 3], [[0.0, 0.0, 2.0], [3.0, 0.0, 2.0], [0.0, 3.0, 2.0]])
+    (tmp_path / "b.json").write_text(json.dumps(b.to_json()))
+    rx = receiver_positions((1.1, 0.9, np.radians(-40.0)))
+    d = [np.linalg.norm(rx - b.position(i), axis=1) + 0.003 * k for k, i in enumerate((1, 2, 3))]
+    tx = [f"{i}:{','.join(f'{v:.9f}' for v in row)}" for i, row in zip((1, 2, 3), d, strict=True)]
+    args = ["locate", "--beacons", tmp_path / "b.json", "--sigma", "0.01", "--format", "json"]
+    got = json.loads(ok(run([*args, *(a for t in tx for a in ("--tx", t))])).stdout)
+    want = locate_pose(b, [1, 2, 3], [[float(f"{v:.9f}") for v in r] for r in d], sigma_m=0.01)
+    for k, v in want.row().items():
+        assert got[k] == (v if isinstance(v, str) else pytest.approx(v, rel=1e-12, abs=1e-15)), k
+    np.testing.assert_allclose(got["covariance"], want.covariance, rtol=1e-12)
