@@ -327,10 +327,10 @@ def _parse(obj: Any) -> Rig:
     name = obj.get("name", "")
     return Rig(
         np.array(ids, dtype=np.int64),
-        np.array(xyz, dtype=np.float64),
-        np.array(bias),
-        np.array(sig),
-        np.array(bsig),
+        np.array(xyz, dtype=np.float64).reshape(-1, 3),  # (0, 3) without anchors
+        np.array(bias, dtype=np.float64),
+        np.array(sig, dtype=np.float64),
+        np.array(bsig, dtype=np.float64),
         np.array(tids, dtype=np.int64),
         np.array(lever, dtype=np.float64),
         odo,

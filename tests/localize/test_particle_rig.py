@@ -157,7 +157,7 @@ def test_shipped_girard_rig_is_the_default_particle_setup():
     from rangekit.rig import read_rig
 
     rig = read_rig(GIRARD_RIG)
-    assert rig.n_anchors == 0 and rig.n_tags == 2
+    assert rig.n_anchors == 0 and rig.n_tags == 2 and rig.anchor_xyz_m.shape == (0, 3)
     cfg = P.rig_config(rig)
     default = P.ParticleConfig()
     np.testing.assert_allclose(cfg.mount_angles_rad, default.mount_angles_rad, atol=1e-15)
