@@ -527,3 +527,16 @@ def test_default_min_bursts_is_all_but_one():
     arr = cp.detect_changepoint(x, fs=b.fs, beep=b, min_bursts=2)
     assert len(arr) == 1 and arr.flag_names(0) == ("inconsistent_bursts",)
     assert arr.confidence[0] == 0.5
+
+
+def test_precursor_level_before_is_the_stretch_just_before_the_near_one():
+    """The level a precursor must rise over is the mean of the ``PRE_NEAR_S`` stretch just
+    before the near one (not anything earlier: a loud stretch before that is ignored)."""
+    hop, n_win, fs = 32, 128, 44100.0
+    near = int(round(cp.PRE_NEAR_S * fs / hop))
+    t0 = 400 * hop + n_win
+    e = np.full(400, 100.0)  # loud long before
+    e[400 - 2 * near :] = 1.0  # the level before
+    e[400 - 30 :] = 10**1.2  # 12 dB up just before the onset
+    got = cp._before_onset_flags(e, t0, hop=hop, n_win=n_win, fs=fs, quiet=1.0)
+    assert got & flag_bit("ambiguous_first_path")
