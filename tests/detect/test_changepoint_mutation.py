@@ -122,6 +122,9 @@ def test_drop_echoes_keeps_the_earlier_unless_the_later_agrees_more():
     assert cp.drop_echoes(arr, duration=500.0).onset.tolist() == [1000.0, 1500.0, 3000.0]
     better = _arrivals([1000.0, 1500.0], [0.75, 1.0])
     assert cp.drop_echoes(better, duration=1000.0).onset.tolist() == [1500.0]
+    # the arrival that replaced the earlier one has its own span: one inside it is dropped
+    three = _arrivals([1000.0, 1500.0, 2200.0], [0.75, 1.0, 1.0])
+    assert cp.drop_echoes(three, duration=1000.0).onset.tolist() == [1500.0]
 
 
 def test_expected_drops_only_as_many_doubtful_arrivals_as_needed_weakest_first():
