@@ -33,52 +33,5 @@ def test_first_command_ranges_a_shipped_fixture():
     assert (ROOT / wav).with_suffix(".json").is_file()
 
 
-def _shown_runs(text: str) -> list[tuple[str, str]]:
-    """``(command, output shown)`` of every ``$ rangekit ...`` line in a code block that
-    works on the shipped fixture (``$ echo $?`` shows the previous exit code)."""
-    blocks, cur = [], None
-    for line in text.splitlines(keepends=True):
-        if line.lstrip().startswith("```"):
-            if cur is None:
-                cur = []
-            else:
-                blocks.append("".join(cur))
-                cur = None
-        elif cur is not None:
-            cur.append(line)
-    runs = []
-    for block in blocks:
-        if not block.startswith("$ rangekit ") or "fixtures_audio/beepbeep_2p5m.wav" not in block:
-            continue
-        for part in re.split(r"^\$ ", block, flags=re.M)[1:]:
-            cmd, _, shown = part.partition("\n")
-            runs.append((cmd, shown))
-    return runs
-
-
-def test_shown_output_is_what_the_commands_print():
-    """The README's sample and docs/cli.md's worked example print what they show."""
-    import shlex
-    import sys
-
-    sys.path.insert(0, str(ROOT / "tests" / "cli"))
-    from clihelp import run
-
-    runs = _shown_runs((ROOT / "README.md").read_text(encoding="utf-8"))
-    runs += _shown_runs((ROOT / "docs" / "cli.md").read_text(encoding="utf-8"))
-    assert len(runs) >= 5, runs  # README 1; cli.md: table, csv, echo $?, detect
-    import os
-
-    cwd = os.getcwd()
-    os.chdir(ROOT)
-    try:
-        last = None
-        for cmd, shown in runs:
-            if cmd == "echo $?":
-                assert shown == f"{last}\n"
-                continue
-            r = run(shlex.split(cmd)[1:])
-            assert r.stdout == shown, (cmd, r.stdout, shown)
-            last = r.exit_code
-    finally:
-        os.chdir(cwd)
+# The README's sample output and every other transcript in the docs are run, in a
+# temporary folder, and compared by tests/test_doc_examples.py.
