@@ -37,7 +37,7 @@ from rangekit.io.stream import RowWriter
 _read_calibration = read_calibration
 _refuse_self_distance = refuse_self_distance
 _refuse_ultrasonic_options = refuse_ultrasonic_options
-__all__ = ["EXIT_BROKEN_PIPE", "SeriesSink", "calibration_option", "range_cmd"]
+__all__ = ["EXIT_BROKEN_PIPE", "calibration_option", "range_cmd"]
 
 #: Exit code when stdout is closed early by its reader (128 + SIGPIPE).
 EXIT_BROKEN_PIPE = 141
@@ -195,22 +195,3 @@ def _write(run, writer: RowWriter) -> None:
     for line in run.warnings():
         warn(line)
     run.finish()
-
-
-class SeriesSink(RowWriter):
-    """A series' items (ExchangeRanges / WindowRanges) written as ``range --series`` does:
-    the rows (:class:`rangekit.io.stream.RowWriter`), then the report on stderr."""
-
-    def __init__(self, scheme: str, fmt: str, output: str | None, *, strict: bool = False) -> None:
-        from rangekit.ranging.series import SERIES_FIELDS
-
-        super().__init__(SERIES_FIELDS[scheme], fmt, output, bar=_bar)
-        self.scheme, self.strict = scheme, strict
-
-    def run(self, items, meta: dict) -> None:
-        """Consume the items; write the rows; report on stderr (exit 10 if withheld)."""
-        from rangekit.ranging.run import RangeRun, SeriesRows
-
-        rows = SeriesRows(items, scheme=self.scheme, strict=self.strict)
-        files = tuple(str(f) for f in meta.get("files", ()))
-        _write(RangeRun(self.scheme, True, self.fields, meta, files, rows, rows), self)

@@ -12,8 +12,9 @@ import pytest
 import soundfile as sf
 from clihelp import assert_error, ok, run
 from rangekit_cli._progress import Progress
-from rangekit_cli.range_cmd import SeriesSink
 
+from rangekit.io.stream import RowWriter
+from rangekit.ranging.run import SeriesRows
 from rangekit.ranging.series import SERIES_FIELDS, ExchangeRanges, WindowRanges
 from rangekit.ranging.ultrasonic import ToF
 from rangekit.sim.recording import pair_devices, render_beepbeep
@@ -96,7 +97,7 @@ def test_csv_rows_are_written_per_block_before_the_series_ends(tmp_path):
     """Streaming: a block's rows are in the file when its progress call returns; a failure
     later removes the partial file."""
     out = tmp_path / "s.csv"
-    sink = SeriesSink("echo", "csv", str(out))
+    sink = RowWriter(SERIES_FIELDS["echo"], "csv", str(out))
     seen = []
 
     def items():
@@ -109,7 +110,7 @@ def test_csv_rows_are_written_per_block_before_the_series_ends(tmp_path):
         raise RuntimeError("disk on fire")
 
     with pytest.raises(RuntimeError, match="disk on fire"):
-        sink.run(items(), {})
+        sink.write(SeriesRows(items(), scheme="echo"), {})
     assert seen[0].splitlines() == [
         "t_s,window,channel,distance_m,sigma_m,snr_db,arrival_s",
         "0.000000,0,0,1.000000,0.001000,30.000000,0.010000",
@@ -244,10 +245,10 @@ def test_progress_counts_without_unit_and_zero_total():
 
 
 def test_sink_writes_csv_without_progress_calls(tmp_path):
-    sink = SeriesSink("beepbeep", "csv", str(tmp_path / "o.csv"))
+    sink = RowWriter(SERIES_FIELDS["beepbeep"], "csv", str(tmp_path / "o.csv"))
     rng = (Range(0, 1, 2.0, 0.01, ()),)
     items = (ExchangeRanges(k, 2.5 * k, rng) for k in range(2))
-    sink.run(items, {})
+    sink.write(SeriesRows(items, scheme="beepbeep"), {})
     assert (tmp_path / "o.csv").read_text().splitlines()[1:] == [
         "0.000000,0,1,2.000000,0.010000,",
         "2.500000,0,1,2.000000,0.010000,",
