@@ -13,7 +13,7 @@ import pytest
 from rangekit.batch import BatchOptions, find_sessions, iter_rows, run_batch, run_session
 from rangekit.errors import InputFileError
 from rangekit.io.guard import MAX_JSON_DEPTH, parse_json, read_capped, read_json_file
-from rangekit.ranging.calibration import read_calibration
+from rangekit.ranging.calibration import Calibration, read_calibration
 
 ROOT = Path(__file__).resolve().parents[1]
 FIX = ROOT / "fixtures_audio"
@@ -192,22 +192,16 @@ def test_guarded_reader_limits(tmp_path):
         read_json_file(fifo)
 
 
+#: A valid two-way calibration, built by the library (what ``rangekit calibrate`` writes).
+VALID_CAL = Calibration(
+    scheme="beepbeep", model="offset", offset_m=0.1, sigma_offset_m=0.001, latency_s=0.0,
+    sigma_latency_s=0.0, speed_m_s=343.0, sigma_speed_m_s=0.0, cov_speed_offset=0.0,
+    n_recordings=3, distances_m=(1.0,), rms_residual_m=0.001,
+)  # fmt: skip
+
+
 def _cal(tmp_path: Path, **change) -> Path:
-    obj = {
-        "format": "rangekit-calibration/1",
-        "scheme": "beepbeep",
-        "model": "offset",
-        "offset_m": 0.1,
-        "sigma_offset_m": 0.001,
-        "latency_s": 0.0,
-        "sigma_latency_s": 0.0,
-        "speed_m_s": 343.0,
-        "sigma_speed_m_s": 0.0,
-        "cov_speed_offset": 0.0,
-        "n_recordings": 3,
-        "distances_m": [1.0],
-        "rms_residual_m": 0.001,
-    }
+    obj = VALID_CAL.to_dict()
     obj.update(change)
     for k in [k for k, v in change.items() if v is KeyError]:
         del obj[k]

@@ -25,6 +25,8 @@ import numpy as np
 import pytest
 from clihelp import run
 
+from rangekit.ranging.calibration import Calibration
+
 ROOT = Path(__file__).resolve().parents[2]
 FIX = ROOT / "fixtures_audio"
 REC = FIX / "beepbeep_2p5m.wav"
@@ -48,22 +50,16 @@ class Case:
 # --- hostile content builders ----------------------------------------------------------
 
 
+#: A valid two-way calibration, built by the library (what ``rangekit calibrate`` writes).
+VALID_CAL = Calibration(
+    scheme="beepbeep", model="offset", offset_m=0.1, sigma_offset_m=0.001, latency_s=0.0,
+    sigma_latency_s=0.0, speed_m_s=343.0, sigma_speed_m_s=0.0, cov_speed_offset=0.0,
+    n_recordings=3, distances_m=(1.0,), rms_residual_m=0.001,
+)  # fmt: skip
+
+
 def _valid_cal() -> dict:
-    return {
-        "format": "rangekit-calibration/1",
-        "scheme": "beepbeep",
-        "model": "offset",
-        "offset_m": 0.1,
-        "sigma_offset_m": 0.001,
-        "latency_s": 0.0,
-        "sigma_latency_s": 0.0,
-        "speed_m_s": 343.0,
-        "sigma_speed_m_s": 0.0,
-        "cov_speed_offset": 0.0,
-        "n_recordings": 3,
-        "distances_m": [1.0],
-        "rms_residual_m": 0.001,
-    }
+    return VALID_CAL.to_dict()
 
 
 def _valid_beacons() -> dict:
