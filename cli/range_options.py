@@ -11,6 +11,7 @@ from __future__ import annotations
 import click
 from rangekit_cli._options import (
     FiniteRange,
+    LazyHelpOption,
     beep_options,
     clock_ppm_option,
     debug_option,
@@ -20,6 +21,7 @@ from rangekit_cli._options import (
     is_verbose,
     output_option,
     self_distance_option,
+    shown_default,
     speed_of_sound_option,
     temperature_option,
     template_option,
@@ -36,6 +38,13 @@ calibration_option = click.option(
     "replaces --self-distance (--latency for oneway), its fitted speed of sound, if any, "
     "replaces --temperature.",
 )
+
+
+def _series_default(name: str):
+    """A default of rangekit.ranging.series, read when help is shown (not at import)."""
+    from rangekit.ranging import series
+
+    return getattr(series, name)
 
 
 #: Every option of ``rangekit range`` after FILES, in help order.
@@ -89,8 +98,11 @@ _OPTIONS = (
         type=FiniteRange(0.0, 3600.0),
         default=None,
         metavar="S",
-        help="--series beepbeep: allowance for the time of flight and for differing recording "
-        "start times [default: 0.1].",
+        cls=LazyHelpOption,
+        lazy_help=lambda: (
+            "--series beepbeep: allowance for the time of flight and for differing recording "
+            f"start times {shown_default(_series_default('DEFAULT_SKEW_S'))}."
+        ),
     ),
     click.option(
         "--clock-rate",
