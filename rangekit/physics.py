@@ -11,6 +11,7 @@ Examples
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -18,6 +19,8 @@ from rangekit.errors import InvalidParameterError
 
 __all__ = [
     "DEFAULT_TEMP_C",
+    "Medium",
+    "check_speed",
     "delay_to_distance_m",
     "distance_to_delay_s",
     "speed_of_sound_m_s",
@@ -63,3 +66,45 @@ def delay_to_distance_m(delay_s, *, speed_m_s: float):
 def distance_to_delay_s(distance_m, *, speed_m_s: float):
     """Propagation delay in seconds over ``distance_m`` metres (scalar or array)."""
     return np.asarray(distance_m) / speed_m_s if np.ndim(distance_m) else distance_m / speed_m_s
+
+
+def check_speed(speed_m_s: float) -> float:
+    """Validate a speed of sound in m/s (finite, within [100, 2000])."""
+    from rangekit import _validate as V
+
+    return V.in_range("speed_m_s", speed_m_s, 100.0, 2000.0)
+
+
+@dataclass(frozen=True)
+class Medium:
+    """The air sound travels through.
+
+    Parameters
+    ----------
+    temp_c : float
+        Air temperature, degrees Celsius (:func:`rangekit.physics.speed_of_sound_m_s`).
+    speed_m_s : float, optional
+        Speed of sound, m/s (within 100-2000); overrides ``temp_c``.
+
+    Attributes
+    ----------
+    c : float
+        The speed of sound used, m/s: ``speed_m_s`` when given, else that of ``temp_c``.
+    """
+
+    temp_c: float = DEFAULT_TEMP_C
+    speed_m_s: float | None = None
+    c: float = field(init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        # The one place the speed of sound is derived from the options.
+        c = (
+            speed_of_sound_m_s(self.temp_c)
+            if self.speed_m_s is None
+            else check_speed(self.speed_m_s)
+        )
+        object.__setattr__(self, "c", float(c))
+
+    def kwargs(self) -> dict:
+        """As the keywords ``temp_c``, ``speed_m_s`` of the keyword APIs."""
+        return {"temp_c": self.temp_c, "speed_m_s": self.speed_m_s}

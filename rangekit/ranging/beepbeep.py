@@ -35,6 +35,7 @@ import numpy as np
 
 from rangekit import _validate as V
 from rangekit.errors import DetectionError, IncompatibleInputError, UnreliableResultError
+from rangekit.physics import check_speed  # re-exported (it lived here)
 from rangekit.types import INFO_FLAGS, Arrivals, Range, RangeResult, flag_names
 
 __all__ = [
@@ -52,11 +53,6 @@ __all__ = [
 DEFAULT_CLOCK_PPM = 30.0
 #: Largest arrival time (and sigma) accepted, s (about 115 days of recording).
 MAX_ONSET_S = 1e7
-
-
-def check_speed(speed_m_s: float) -> float:
-    """Validate a speed of sound in m/s (finite, within [100, 2000])."""
-    return V.in_range("speed_m_s", speed_m_s, 100.0, 2000.0)
 
 
 def self_distances(self_distance_m, n_devices: int) -> np.ndarray:

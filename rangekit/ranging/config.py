@@ -53,8 +53,8 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from rangekit import _validate as V
-from rangekit.physics import DEFAULT_TEMP_C, speed_of_sound_m_s
-from rangekit.ranging.beepbeep import DEFAULT_CLOCK_PPM, check_speed, self_distances
+from rangekit.physics import Medium
+from rangekit.ranging.beepbeep import DEFAULT_CLOCK_PPM, self_distances
 from rangekit.ranging.series import DEFAULT_SKEW_S
 from rangekit.signals.barker import CodedBurst
 from rangekit.signals.transducer import Transducer
@@ -68,41 +68,6 @@ __all__ = [
     "SeriesOptions",
     "TwoWaySetup",
 ]
-
-
-@dataclass(frozen=True)
-class Medium:
-    """The air sound travels through.
-
-    Parameters
-    ----------
-    temp_c : float
-        Air temperature, degrees Celsius (:func:`rangekit.physics.speed_of_sound_m_s`).
-    speed_m_s : float, optional
-        Speed of sound, m/s (within 100-2000); overrides ``temp_c``.
-
-    Attributes
-    ----------
-    c : float
-        The speed of sound used, m/s: ``speed_m_s`` when given, else that of ``temp_c``.
-    """
-
-    temp_c: float = DEFAULT_TEMP_C
-    speed_m_s: float | None = None
-    c: float = field(init=False, repr=False, compare=False)
-
-    def __post_init__(self) -> None:
-        # The one place the speed of sound is derived from the options.
-        c = (
-            speed_of_sound_m_s(self.temp_c)
-            if self.speed_m_s is None
-            else check_speed(self.speed_m_s)
-        )
-        object.__setattr__(self, "c", float(c))
-
-    def kwargs(self) -> dict:
-        """As the keywords ``temp_c``, ``speed_m_s`` of the keyword APIs."""
-        return {"temp_c": self.temp_c, "speed_m_s": self.speed_m_s}
 
 
 @dataclass(frozen=True)

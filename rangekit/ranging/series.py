@@ -63,10 +63,9 @@ from rangekit.errors import (
     IncompatibleInputError,
     InvalidParameterError,
 )
-from rangekit.physics import DEFAULT_TEMP_C, speed_of_sound_m_s
+from rangekit.physics import DEFAULT_TEMP_C, Medium
 from rangekit.ranging.beepbeep import (
     DEFAULT_CLOCK_PPM,
-    check_speed,
     range_beepbeep,
     self_distances,
 )
@@ -389,7 +388,7 @@ def range_series_beepbeep(
     ([0.15, 3.15, 6.15], [2.0, 2.0, 2.0])
     """
     beep = Beep() if beep is None else beep
-    c = speed_of_sound_m_s(temp_c) if speed_m_s is None else check_speed(speed_m_s)
+    c = Medium(temp_c=temp_c, speed_m_s=speed_m_s).c
     V.in_range("clock_ppm", clock_ppm, 0.0, 1e4)
     if detector not in DETECTORS:
         raise InvalidParameterError(f"detector={detector!r} must be one of {', '.join(DETECTORS)}")

@@ -24,7 +24,7 @@ import numpy as np
 from rangekit import _validate as V
 from rangekit.detect.matched import detect_matched
 from rangekit.errors import IncompatibleInputError, InvalidParameterError
-from rangekit.physics import speed_of_sound_m_s
+from rangekit.physics import Medium
 from rangekit.signals.transducer import Transducer
 
 __all__ = ["ToF", "window_starts"]
@@ -259,6 +259,4 @@ def _windows(
 
 
 def _speed(temp_c: float, speed_m_s: float | None) -> float:
-    if speed_m_s is None:
-        return speed_of_sound_m_s(temp_c)
-    return V.in_range("speed_m_s", speed_m_s, 100.0, 2000.0)
+    return Medium(temp_c=temp_c, speed_m_s=speed_m_s).c
