@@ -121,6 +121,11 @@ class Arrivals:
     flags : ndarray of int, shape (n,), optional
         Bit set of :data:`ARRIVAL_FLAGS` per arrival (default all zero);
         :meth:`flag_names` gives the names.
+    sigma_transducer : ndarray, shape (n,), optional
+        The part of ``sigma`` (samples, included in it) that is the transducers' unknown
+        group delay in the signal's band: the same for every arrival through the same
+        loudspeaker and microphone, so it cancels in two-way ranging and a calibration
+        absorbs it (:attr:`sigma_relative` leaves it out). Default all zero.
     """
 
     onset: np.ndarray
@@ -132,12 +137,17 @@ class Arrivals:
     detector: str = ""
     window: np.ndarray | None = None
     flags: np.ndarray | None = None
+    sigma_transducer: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         if self.flags is None:
             object.__setattr__(self, "flags", np.zeros(len(self.onset), dtype=np.int64))
         elif len(self.flags) != len(self.onset):
             raise ValueError("Arrivals.flags must have one entry per onset")
+        if self.sigma_transducer is None:
+            object.__setattr__(self, "sigma_transducer", np.zeros(len(self.onset)))
+        elif len(self.sigma_transducer) != len(self.onset):
+            raise ValueError("Arrivals.sigma_transducer must have one entry per onset")
         n = len(self.onset)
         for name in ("sigma", "snr_db", "confidence"):
             if len(getattr(self, name)) != n:
@@ -166,6 +176,12 @@ class Arrivals:
         """Onset uncertainties in seconds."""
         return self.sigma / self.fs
 
+    @property
+    def sigma_relative(self) -> np.ndarray:
+        """``sigma`` without the transducer term (samples): the uncertainty of a difference
+        of arrivals through the same loudspeaker and microphone (two-way ranging)."""
+        return np.sqrt(np.maximum(self.sigma**2 - self.sigma_transducer**2, 0.0))
+
     def take(self, index) -> Arrivals:
         """A new Arrivals with the entries selected by ``index``."""
         idx = np.asarray(index)
@@ -179,6 +195,7 @@ class Arrivals:
             self.detector,
             None if self.window is None else self.window[idx],
             self.flags[idx],
+            self.sigma_transducer[idx],
         )
 
     def flag_names(self, i: int) -> tuple[str, ...]:

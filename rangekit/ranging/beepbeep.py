@@ -143,7 +143,9 @@ def range_beepbeep(
                 f"device {i}: onsets and sigmas must be finite and within {MAX_ONSET_S:g} s"
             )
     t = [a.onset_s for a in arrivals]
-    v = [a.sigma_s**2 for a in arrivals]
+    # Each device's speaker and microphone delays appear in both of a range's differences
+    # and cancel: the arrivals' transducer term stays out (Arrivals.sigma_relative).
+    v = [(a.sigma_relative / a.fs) ** 2 for a in arrivals]
     ranges = []
     for a in range(n):
         for b in range(a + 1, n):
