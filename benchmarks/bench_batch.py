@@ -39,6 +39,7 @@ import tempfile
 import time
 from pathlib import Path
 
+import _one_core  # noqa: F401  (one thread, bytecode cache; before numpy)
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -34,6 +34,7 @@ import sys
 import time
 from pathlib import Path
 
+import _one_core  # noqa: F401  (one thread, bytecode cache; before numpy)
 import soundfile as sf
 from _report import row
 

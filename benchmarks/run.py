@@ -31,6 +31,10 @@ be missed).  Where ``os.wait4`` is missing (Windows) only the sampling is left. 
 child's ``ru_maxrss`` may also include the parent's resident pages at fork time (before
 exec): run this script from a small process (a shell), not from a large one.
 
+Bytecode.  Where ``PYTHONDONTWRITEBYTECODE`` is set, the benchmarks run without it and with
+``PYTHONPYCACHEPREFIX`` in a temporary folder (``_one_core``), so that the commands they
+time do not compile rangekit's sources on every start (an installed package does not).
+
 Exit status: 0 if every benchmark exited 0, else 1.
 
 Run: ``python benchmarks/run.py [--quick] [-k TEXT] [--markdown FILE] [--json FILE]``
@@ -46,6 +50,7 @@ import platform
 import re
 import subprocess
 import sys
+import tempfile
 import threading
 import time
 from collections.abc import Iterable, Sequence
@@ -63,6 +68,9 @@ ROW_PREFIX = "@row "
 ROW_FIELDS = ("bench", "metric", "value", "unit", "peer", "peer_value", "ratio", "note")
 #: Period of the VmHWM sampling of a running benchmark, s (see the module docstring).
 HWM_PERIOD_S = 0.05
+#: Folder (in the temporary directory) of the benchmarks' bytecode where none was to be
+#: written (``PYTHONDONTWRITEBYTECODE``; ``_one_core.PYCACHE``).
+PYCACHE_DIR = "rangekit-bench-pycache"
 #: Columns of the summary table.
 COLUMNS = ("bench", "metric", "value", "unit", "peer", "peer value", "ratio", "peak RSS", "note")
 
@@ -231,6 +239,9 @@ def _sample_hwm(pid: int, stop: threading.Event, peak: list[float]) -> None:
 def run_bench(cmd: Sequence[str], *, cwd: Path, display: str) -> BenchResult:
     """Run one benchmark: stream its stdout (without row lines), collect rows, peak RSS."""
     env = {**os.environ, "PYTHONUNBUFFERED": "1", "PYTHONIOENCODING": "utf-8"}
+    if env.pop("PYTHONDONTWRITEBYTECODE", None) is not None:
+        # as _one_core does: commands compile rangekit once, as an installed package has
+        env.setdefault("PYTHONPYCACHEPREFIX", str(Path(tempfile.gettempdir()) / PYCACHE_DIR))
     t0 = time.perf_counter()
     proc = subprocess.Popen(
         list(cmd), cwd=cwd, env=env, stdout=subprocess.PIPE, text=True, encoding="utf-8",

@@ -331,3 +331,21 @@ def test_supports_quick_reads_the_source(tmp_path):
     assert run.supports_quick(p)
     p.write_text("print('no options')\n")
     assert not run.supports_quick(p)
+
+
+def test_run_bench_gives_its_children_a_bytecode_cache(tmp_path, monkeypatch, capsys):
+    """Where PYTHONDONTWRITEBYTECODE is set, a benchmark (and what it starts) runs without
+    it and keeps bytecode outside the checkout: no command recompiles rangekit."""
+    script = tmp_path / "bench_env.py"
+    script.write_text(
+        "import os, sys\n"
+        "print(os.environ.get('PYTHONDONTWRITEBYTECODE'), sys.dont_write_bytecode,\n"
+        "      os.environ.get('PYTHONPYCACHEPREFIX'))\n"
+    )
+    monkeypatch.setenv("PYTHONDONTWRITEBYTECODE", "1")
+    monkeypatch.delenv("PYTHONPYCACHEPREFIX", raising=False)
+    res = run.run_bench([sys.executable, str(script)], cwd=tmp_path, display="env")
+    assert res.returncode == 0
+    none, dont, prefix = capsys.readouterr().out.split()
+    assert (none, dont) == ("None", "False")
+    assert prefix.endswith(run.PYCACHE_DIR) and not prefix.startswith(str(ROOT))
