@@ -39,7 +39,7 @@ from pathlib import Path
 
 import _one_core  # noqa: F401  (one thread, repo on sys.path; before numpy)
 import soundfile as sf
-from _report import row
+from _report import goal_verdict, row
 from bench_schemes import FS_AUDIO, beepbeep_signal
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -168,20 +168,27 @@ def main() -> int:
     t_det, c_det = best("detect")
     x_rt = DURATION_S / t_det
     vs_peer = best("stft")[0] / t_det
-    met = x_rt >= GOAL_DETECT_X and vs_peer >= GOAL_DETECT_PEER
-    verdict = "met" if met else "NOT met"
+    x_cpu, vs_cpu = DURATION_S / c_det, best("stft")[1] / c_det
+    verdict = goal_verdict(
+        f"goal >= {GOAL_DETECT_X:.0f}x and >= {GOAL_DETECT_PEER:.0f}x the peer",
+        x_cpu >= GOAL_DETECT_X and vs_cpu >= GOAL_DETECT_PEER,
+        f"{x_cpu:.0f}x, {vs_cpu:.1f}x the peer",
+        f"{x_rt:.0f}x, {vs_peer:.1f}x",
+    )
     print(f"\n  rangekit detect: {x_rt:.0f}x realtime (wall; {DURATION_S / c_det:.0f}x on its CPU "
           f"time), {vs_peer:.1f}x the ShortTimeFFT peer, decoding alone "
-          f"{DURATION_S / best('decode')[0]:.0f}x; goal >= {GOAL_DETECT_X:.0f}x and >= "
-          f"{GOAL_DETECT_PEER:.0f}x the peer: {verdict}")  # fmt: skip
-    t_range = med("range")
-    range_met = t_range <= GOAL_RANGE_S
+          f"{DURATION_S / best('decode')[0]:.0f}x; {verdict}")  # fmt: skip
+    t_range, c_range = med("range"), best("range")[1]
+    range_verdict = goal_verdict(
+        f"goal <= {GOAL_RANGE_S} s", c_range <= GOAL_RANGE_S,
+        f"{c_range:.3f} s; python -c 'import numpy' {best('numpy')[1]:.3f} s",
+        f"median {t_range:.3f} s",
+    )  # fmt: skip
     help_numba = any(m.split(".")[0] == "numba" for m in mods_help)
     range_numba = any(m.split(".")[0] == "numba" for m in mods_range)
     heavy = sorted(m for m in mods_range if m.startswith(("scipy.signal", "scipy.stats")))
     print(f"  rangekit range fixture: median {t_range:.3f} s, best {best('range')[0]:.3f} s "
-          f"(python -c 'import numpy' {med('numpy'):.3f} s); goal <= {GOAL_RANGE_S} s: "
-          f"{'met' if range_met else 'NOT met'}")  # fmt: skip
+          f"(python -c 'import numpy' {med('numpy'):.3f} s); {range_verdict}")  # fmt: skip
     print(f"  imports: --help numba {'YES' if help_numba else 'no'}; range numba "
           f"{'YES' if range_numba else 'no'}, scipy.signal/stats {heavy or 'none'}")  # fmt: skip
     print("  slowest top-level imports of `range` (cumulative ms): "
@@ -191,14 +198,13 @@ def main() -> int:
         "x-realtime", peer="decode + scipy ShortTimeFFT band (2 ch)",
         peer_value=DURATION_S / best("stft")[0],
         note=f"best of {rounds} (wall {t_det:.2f} s, CPU {c_det:.2f} s); decoding alone "
-        f"{DURATION_S / best('decode')[0]:.0f}x; goal >= {GOAL_DETECT_X:.0f}x and >= "
-        f"{GOAL_DETECT_PEER:.0f}x the peer: {verdict}")  # fmt: skip
+        f"{DURATION_S / best('decode')[0]:.0f}x; {verdict}")  # fmt: skip
     row("detect_cli", "rangekit detect vs decoding alone", x_rt, "x-realtime",
         peer="decode only (soundfile float32)", peer_value=DURATION_S / best("decode")[0],
         note="the decode limit")  # fmt: skip
     row("detect_cli", "rangekit range fixture, median wall", t_range, "s",
         peer='python -c "import numpy"', peer_value=med("numpy"),
-        note=f"goal <= {GOAL_RANGE_S} s: {'met' if range_met else 'NOT met'}; numba "
+        note=f"{range_verdict}; numba "
         f"{'imported' if range_numba else 'not imported'}")  # fmt: skip
     row("detect_cli", "rangekit --help, median wall", med("help"), "s",
         peer="python -c pass", peer_value=med("pass"),

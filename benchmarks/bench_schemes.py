@@ -56,7 +56,7 @@ import _one_core  # noqa: F401  (one thread, repo on sys.path; before numpy)
 import numpy as np
 import scipy.signal as ss
 import soundfile as sf
-from _report import row
+from _report import best_of, goal_verdict, row
 from _stft_peer import stft_band_energy
 
 from rangekit.detect.matched import coded_template
@@ -76,19 +76,26 @@ POSE = (1.2, 1.0, 0.3)
 PERIOD_ONEWAY_S = 0.2
 PERIOD_ECHO_S = 0.07
 DIST_M = 3.0
+#: Issue 20's goals (x realtime, judged on CPU time): range_oneway 3 receivers, range_echo.
+GOALS_X = {"oneway": 400.0, "echo": 400.0}
 #: Tolerances of the checks, m.
 TOL_BEEPBEEP_M = 0.02
 TOL_US_M = 0.01
 
 
-def best_time(fn, repeats: int):
-    """Best wall time of ``repeats`` calls of ``fn()``, and the last result."""
-    best, res = math.inf, None
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        res = fn()
-        best = min(best, time.perf_counter() - t0)
-    return best, res
+class Seconds(float):
+    """A best wall time (the float) with the best CPU time of the same calls (``.cpu``)."""
+
+    cpu: float = math.nan
+
+
+def best_time(fn, repeats: int) -> tuple[Seconds, object]:
+    """Best wall time of ``repeats`` calls of ``fn()`` (its ``.cpu``: the best CPU time,
+    ``_report.best_of``), and the last result."""
+    wall, cpu, res = best_of(fn, repeats)
+    t = Seconds(wall)
+    t.cpu = cpu
+    return t, res
 
 
 # --------------------------------------------------------------------------- signals
@@ -311,16 +318,24 @@ def main() -> int:
         "per second of wall time"
     )
     print(
-        f"  {'scheme':<9} {'audio s':>7} {'rangekit s':>10} {'x-realtime':>11} {'peer s':>8} "
-        f"{'peer x-rt':>10} {'t_peer / t':>11}  peer"
+        f"  {'scheme':<9} {'audio s':>7} {'rangekit s':>10} {'x-realtime':>11} {'CPU s':>7} "
+        f"{'x CPU':>7} {'peer s':>8} {'peer x-rt':>10} {'t_peer / t':>11} {'CPU ratio':>9}  peer"
     )
     for scheme, _, t, peer, tp, _, dur in table:
         print(
-            f"  {scheme:<9} {dur:7.0f} {t:10.3f} {dur / t:10.0f}x {tp:8.3f} "
-            f"{dur / tp:9.0f}x {tp / t:10.2f}x  {peer}"
+            f"  {scheme:<9} {dur:7.0f} {t:10.3f} {dur / t:10.0f}x {t.cpu:7.3f} "
+            f"{dur / t.cpu:6.0f}x {tp:8.3f} {dur / tp:9.0f}x {tp / t:10.2f}x "
+            f"{tp.cpu / t.cpu:8.2f}x  {peer}"
         )
     # Headline rows for benchmarks/run.py (ratio = t_peer / t: > 1 = faster than the peer).
     for scheme, name, t, peer, tp, note, dur in table:
+        x_cpu = dur / t.cpu
+        goal = GOALS_X.get(scheme)
+        judged = (
+            goal_verdict(f"goal >= {goal:.0f}x", x_cpu >= goal,
+                         f"{x_cpu:.0f}x, {tp.cpu / t.cpu:.2f}x the peer", f"{dur / t:.0f}x")
+            if goal else f"{x_cpu:.0f}x CPU, {tp.cpu / t.cpu:.2f}x the peer's CPU"
+        )  # fmt: skip
         row(
             "schemes",
             f"{scheme}: {name}",
@@ -328,7 +343,7 @@ def main() -> int:
             "x-realtime",
             peer=peer,
             peer_value=dur / tp,
-            note=f"{dur:.0f} s of recording, best of {repeats}; {note}",
+            note=f"{dur:.0f} s of recording, best of {repeats}; {note}; {judged}",
         )
     if not ok:
         print("\nFAIL: a scheme's ranges disagree with the truth", file=sys.stderr)

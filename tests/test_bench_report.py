@@ -349,3 +349,32 @@ def test_run_bench_gives_its_children_a_bytecode_cache(tmp_path, monkeypatch, ca
     none, dont, prefix = capsys.readouterr().out.split()
     assert (none, dont) == ("None", "False")
     assert prefix.endswith(run.PYCACHE_DIR) and not prefix.startswith(str(ROOT))
+
+
+def test_best_of_gives_wall_and_cpu_and_the_result():
+    import time
+
+    def busy():
+        t0 = time.process_time()
+        while time.process_time() - t0 < 0.02:
+            pass
+        return 7
+
+    wall, cpu, res = report.best_of(busy, 2)
+    assert res == 7
+    assert 0.02 <= cpu <= wall + 0.01  # measured 0.020 s CPU, wall about the same
+    w_sleep, c_sleep, _ = report.best_of(lambda: time.sleep(0.05), 1)
+    assert w_sleep >= 0.05 and c_sleep < 0.02  # sleeping costs wall, not CPU
+
+
+def test_goal_verdicts_are_collected_by_run():
+    note = "60 s; " + report.goal_verdict("goal >= 800x", False, "355x, 8.8x the peer", "178x")
+    assert note.endswith("goal >= 800x: NOT met on CPU time (355x, 8.8x the peer; wall 178x)")
+    ok = report.goal_verdict("goal <= 50 us/epoch for 8 hypotheses (issue 20)", True, "41 us")
+    res = run.BenchResult("bench_x.py", "python benchmarks/bench_x.py", 0, 1.0, None, rows=[
+        {"bench": "x", "metric": "a", "note": note}, {"bench": "x", "metric": "b", "note": ok},
+    ])  # fmt: skip
+    assert run.goal_rows([res]) == [
+        ("x", "a", "goal >= 800x", "NOT met"),
+        ("x", "b", "goal <= 50 us/epoch for 8 hypotheses (issue 20)", "met"),
+    ]
