@@ -70,6 +70,7 @@ TESTS: dict[str, tuple[str, ...]] = {
         "tests/detect/test_edge_kernels.py",
     ),
     "rangekit/detect/_kernels.py": ("tests/detect/test_kernels.py",),
+    "rangekit/detect/condition.py": ("tests/detect/test_condition.py",),
     "rangekit/detect/xcorr.py": (
         "tests/detect/test_xcorr_mutation.py",
         "tests/detect/test_front.py",
@@ -79,6 +80,9 @@ TESTS: dict[str, tuple[str, ...]] = {
         "tests/ranging/test_clock.py",
         "tests/ranging/test_clock_mutation.py",
     ),
+    "rangekit/ranging/config.py": ("tests/ranging/test_config.py",),
+    "rangekit/ranging/pipeline.py": ("tests/ranging/test_pipeline.py",),
+    "rangekit/ranging/run.py": ("tests/ranging/test_run.py", "tests/cli/test_range_library.py"),
     "rangekit/ranging/calibration.py": (
         "tests/ranging/test_calibration_mutation.py",
         "tests/cli/test_calibrate_cli.py",
