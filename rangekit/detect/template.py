@@ -32,10 +32,14 @@ room or transducer (theory and measurements: ``docs/theory/probes.md``):
    the earliest peak above ``max(k_noise * floor, rel_threshold * strongest)`` that is
    not a side lobe of the strongest path nor of up to :data:`N_CLEAN_PATHS` stronger
    later paths.
-6. **Sub-sample lag** by a Gaussian fit of the envelope (:func:`interp_peak`); 1-sigma
-   ``sqrt(crb^2 + interp^2 + shape^2)``: the Cramér–Rao bound, the interpolation error of
-   the weighted peak shape, and the shift an unmodelled component of the peak
-   (unresolved multipath, transducer mismatch) can cause.
+6. **Sub-sample lag** by a Gaussian fit of the envelope (:func:`interp_peak`; wide
+   probes phase-coherently, :mod:`rangekit.detect._coherent`); 1-sigma
+   ``sqrt(crb^2 + interp^2 + shape^2 + def^2 + td^2)``: the Cramér–Rao bound, the
+   interpolation error of the weighted peak shape, the shift an unmodelled component of
+   the peak (unresolved multipath, transducer mismatch) can cause, the two timings'
+   disagreement, and the transducers' unknown group delay in the probe's band
+   (:func:`transducer_sigma`; also in ``Arrivals.sigma_transducer``, which two-way
+   ranging leaves out because it cancels there).
 7. **Flags** (:data:`rangekit.types.ARRIVAL_FLAGS`): ``clipped``, ``low_snr``,
    ``ambiguous_first_path``, ``poor_match`` (sub-band coverage, :func:`_coverage`),
    ``reverb_limited``, ``dc_or_lowband``.
@@ -94,11 +98,13 @@ from rangekit.types import Arrivals, flag_bit
 
 __all__ = [
     "DEFAULT_LOOKBACK_S",
+    "DEFAULT_TRANSDUCER_RIPPLE_DB",
     "DEFAULT_WEIGHTING",
     "FALSE_ALARM",
     "POOR_MATCH_COVERAGE",
     "detect_template",
     "noise_spectra",
+    "transducer_sigma",
 ]
 
 #: Default time before an arrival's strongest peak searched for an earlier direct path, s
@@ -151,6 +157,10 @@ LOWBAND_POWER_RATIO = 1.0
 #: filter keeps 1e-9): -70 dB in amplitude, below any recording's noise, and a 1 s
 #: 20 Hz-20 kHz sweep's filter shrinks from 810k to 227k taps.
 ANALYTIC_TAIL = 1e-7
+#: Magnitude ripple (dB, peak) of the loudspeaker-microphone chain assumed across a probe's
+#: band for the transducer term of ``sigma`` (:func:`transducer_sigma`): +-6 dB, a small
+#: loudspeaker's or phone's (dEchorate's measured chains: 2.7-10.5 dB over 8-12 kHz).
+DEFAULT_TRANSDUCER_RIPPLE_DB = 6.0
 #: Band-limiting starts at DC (low-pass only) for probes reaching below this, Hz: the
 #: noise weighting handles their low band; a high-pass edge there would need thousands
 #: of taps.
@@ -169,6 +179,35 @@ def noise_spectra(x: np.ndarray, *, fs: float, probe: Probe) -> Spectra:
     return welch_spectra(x, fs=fs, nperseg=_base(probe, fs, DEFAULT_BLOCK).nperseg)
 
 
+def transducer_sigma(beta: float, ripple_db: float = DEFAULT_TRANSDUCER_RIPPLE_DB) -> float:
+    """1-sigma (in the unit of ``1 / beta``) of the transducers' unknown group delay that an
+    envelope timing of a band reads as propagation.
+
+    The loudspeaker-microphone chain ``H(f) = |H| exp(j (phi_0 - 2 pi f tau_0 + delta(f)))``
+    delays the received pulse's peak by ``tau_0`` (the broadband peak, the convention of
+    measured impulse responses and of the phase-coherent timing); over a probe's band its
+    phase departs from that by ``delta(f)``. A minimum-phase chain whose log-magnitude
+    ripples by ``A`` nepers (``ripple_db / 8.686``) about a smooth trend has, by Bode's
+    gain-phase relation (the phase is the Hilbert transform of ``ln |H|``), a phase ripple
+    of the same amplitude, ``|delta| <= A`` rad. The envelope peak of the matched filter
+    reads the weighted least-squares slope of the arrival's phase over the band, so it
+    shifts by ``sum w (f - f_c) delta / (2 pi sum w (f - f_c)^2)``, at most (Cauchy-Schwarz)
+    ``A / (2 pi beta)``, ``beta`` the RMS bandwidth of the weighted spectrum about its
+    centroid. Unlike the shape term this part cannot be seen in the arrival: a phase
+    slope is a delay. Derivation and measurements: ``docs/theory/probes.md``
+    (uncertainty).
+
+    Examples
+    --------
+    An 8-12 kHz sweep (``beta`` about 1155 Hz) at 48 kHz, +-6 dB of ripple:
+
+    >>> round(48000 * transducer_sigma(1155.0), 2)
+    4.57
+    """
+    a = V.positive("ripple_db", ripple_db, allow_zero=True) / (20.0 / math.log(10.0))
+    return a / (2.0 * math.pi * V.positive("beta", beta))
+
+
 def detect_template(
     x: np.ndarray,
     *,
@@ -183,6 +222,7 @@ def detect_template(
     weighting: str = DEFAULT_WEIGHTING,
     spectra: Spectra | None = None,
     block: int = DEFAULT_BLOCK,
+    transducer_ripple_db: float = DEFAULT_TRANSDUCER_RIPPLE_DB,
     what: str = "the recording",
 ) -> Arrivals:
     """Every arrival of ``probe`` in one channel, first path each, in time order.
@@ -220,6 +260,10 @@ def detect_template(
         onsets, the same for all of them (see ``docs/theory/probes.md``, limits).
     block : int
         Overlap-save FFT size.
+    transducer_ripple_db : float
+        Magnitude ripple (dB) of the loudspeaker and microphone assumed across the probe's
+        band for the transducer term of ``sigma`` (:func:`transducer_sigma`); 0 for
+        transducers known to be flat.
     what : str
         The recording, for error messages.
 
@@ -227,7 +271,8 @@ def detect_template(
     -------
     Arrivals
         ``detector="template"``; ``onset`` and ``sigma`` in samples (``sigma`` includes
-        the model-error terms, never 0); ``snr_db`` the first path's height over the
+        the model-error terms, never 0, and the transducer term ``sigma_transducer``,
+        which two-way ranging leaves out); ``snr_db`` the first path's height over the
         local noise floor of the weighted output; ``confidence`` the first path's height
         over the arrival's strongest peak; ``burst_onsets[:, 0]`` repeats the onset;
         ``flags`` as in the module notes.
@@ -241,7 +286,8 @@ def detect_template(
 
     Notes
     -----
-    The 1-sigma in samples is ``sqrt(s_crb^2 + s_interp^2 + s_shape^2)`` with
+    The 1-sigma in samples is ``sqrt(s_crb^2 + s_interp^2 + s_shape^2 + s_def^2 +
+    s_td^2)`` with
     ``s_crb = fs / (2 pi beta_w snr)`` (``beta_w``: RMS bandwidth of the weighted
     spectrum ``|S|^2 W``; Kay 1993 §3.11), ``s_interp`` the RMS error of the Gaussian
     peak interpolation on the weighted self response over fractional delays, and
@@ -249,7 +295,11 @@ def detect_template(
     envelope's energy within the main lobe around the first path that the self response
     does not explain, beyond the noise's share: by Cauchy–Schwarz an unmodelled
     component of relative energy ``eps`` shifts a correlation peak by at most
-    ``sqrt(eps) / (2 pi beta)`` (derivation in ``docs/theory/probes.md``).
+    ``sqrt(eps) / (2 pi beta)`` (derivation in ``docs/theory/probes.md``); ``s_def`` the
+    disagreement of the phase-coherent and envelope timings of a wide probe; ``s_td =
+    (1 - w) transducer_sigma(beta_w)`` the transducers' in-band group delay
+    (:func:`transducer_sigma`), ``w`` the weight of the phase-coherent timing (the pulse's
+    peak, which is the reference: 0 for narrow probes).
     """
     fs = V.sample_rate(fs)
     x = V.signal_1d("x", x)
@@ -272,6 +322,7 @@ def detect_template(
     sep = max(1, int(round(V.positive("min_separation_s", sep_s) * fs)))
     look = int(round(V.positive("lookback_s", lookback_s, allow_zero=True) * fs))
     look = min(look, sep // 2)
+    s_td_env = transducer_sigma(1.0, transducer_ripple_db)  # times 1 / beta below
     probe.check_fits(fs, what=what)
     if len(x) < 3:
         return _empty(fs)
@@ -353,6 +404,7 @@ def detect_template(
         s_crb = 1.0 / (2.0 * math.pi * wf.beta * snr) if snr > 0 else math.inf
         s_interp = wf.interp_rms
         s_def = 0.0
+        w = 0.0
         if wf.coherent_reach:
             # Wideband probe: the pulse's peak (real part), not its envelope's; the
             # envelope's disagreement beyond its noise is the arrival's phase distortion.
@@ -368,7 +420,8 @@ def detect_template(
         j = int(round(lag))
         eps, ambiguous_near = _shape(c, j, lag - j, wf, floor)
         s_shape = math.sqrt(eps) / (2.0 * math.pi * wf.beta)
-        sigma = math.sqrt(s_crb**2 + s_interp**2 + s_shape**2 + s_def**2)
+        s_td = (1.0 - w) * s_td_env / wf.beta
+        sigma = math.sqrt(s_crb**2 + s_interp**2 + s_shape**2 + s_def**2 + s_td**2)
         bits = 0
         if clip_cum is not None:
             s0 = min(max(j, 0), len(x))
@@ -391,16 +444,17 @@ def detect_template(
         if lowband:
             bits |= flag_bit("dc_or_lowband")
         conf = min(pk.height / float(env[q]), 1.0)
-        rows.append((lag, sigma, 20.0 * math.log10(max(snr, 1e-300)), conf, bits))
+        rows.append((lag, sigma, 20.0 * math.log10(max(snr, 1e-300)), conf, s_td, bits))
     if not rows:
         return _empty(fs)
     rows.sort()
-    a = np.array([r[:4] for r in rows], dtype=np.float64)
+    a = np.array([r[:5] for r in rows], dtype=np.float64)
     onset = a[:, 0]
-    flags = np.array([r[4] for r in rows], dtype=np.int64)
+    flags = np.array([r[5] for r in rows], dtype=np.int64)
     return Arrivals(
-        onset, fs, a[:, 1], a[:, 2], a[:, 3], onset[:, None].copy(), "template", None, flags
-    )
+        onset, fs, a[:, 1], a[:, 2], a[:, 3], onset[:, None].copy(), "template", None, flags,
+        a[:, 4],
+    )  # fmt: skip
 
 
 def _select(

@@ -48,7 +48,9 @@ def test_detect_template_finds_the_rendered_onsets(tmp_path, sweep_file, fs):
     for a in rows:
         assert a["file"] == str(rec)
         assert a["onset_s"] == pytest.approx(a["onset_sample"] / fs)
-        assert 0 < a["sigma_samples"] < 0.05 and a["snr_db"] > 30
+        # sigma is the absolute onset's: the transducers' unknown group delay in the 3 kHz
+        # band dominates it (transducer_sigma, measured 7.3 samples at 44.1 kHz, 7.9 at 48).
+        assert 5.0 < a["sigma_samples"] < 12.0 and a["snr_db"] > 30
 
 
 def test_detect_template_mono_files_and_csv(tmp_path, sweep_file):

@@ -1,6 +1,7 @@
 """Measurements behind the probe detector's choices (``docs/theory/probes.md``).
 
-Run ``python tests/detect/measure_template.py {weighting,dechorate,match,rooms,speed}``
+Run ``python tests/detect/measure_template.py
+{weighting,dechorate,match,rooms,speed,transducer}``
 from the repository root; every number is seeded. Not a test module (no ``test_``
 prefix): the tests in this folder assert bounds on the same measurements.
 """
@@ -41,6 +42,7 @@ def dechorate() -> None:
     import test_template_realdata as R
 
     from rangekit.signals.probe import linear_sweep
+    from rangekit.types import INFO_FLAGS
 
     rirs = R.dechorate()
     for f0, f1 in [(200.0, 13000.0), (8000.0, 12000.0), (2000.0, 6000.0)]:
@@ -49,13 +51,19 @@ def dechorate() -> None:
             rows = R._errors(rirs, p, check=False, **kw)
             e = np.array([r[0] for r in rows])
             s = np.array([r[1] for r in rows])
-            flags = sum(bool(r[2]) for r in rows)
+            doubt = np.array([bool(set(r[2]) - INFO_FLAGS) for r in rows])
+            td = np.array([r[3] for r in rows])
+            out = (np.abs(e) > 2 * s) & ~doubt
             print(
                 f"{f0:.0f}-{f1:.0f} Hz {kw or '30 dB'}: <=1 {np.sum(np.abs(e) <= 1)}/12, "
                 f"<=3 {np.sum(np.abs(e) <= 3)}/12, |e|<=2sigma {np.sum(np.abs(e) <= 2 * s)}/12, "
-                f"max {np.abs(e).max():.1f}, sigma {s.min():.2f}-{s.max():.2f}, flagged {flags}"
+                f"max {np.abs(e).max():.1f}, sigma {s.min():.2f}-{s.max():.2f} (transducer "
+                f"{td.min():.2f}-{td.max():.2f}), flagged {doubt.sum()}; unflagged beyond "
+                f"2 sigma {out.sum()} {np.flatnonzero(out).tolist()}"
             )
             print("   errors", np.round(e, 1).tolist())
+            print("   |e|/sigma", np.round(np.abs(e) / s, 2).tolist())
+            print("   flagged channels", np.flatnonzero(doubt).tolist())
             if f0 == 200.0 and not kw:
                 pair = e[:6] - e[6:]
                 print("   pairs (ch i - ch i+6, same array):", np.round(pair, 2).tolist())
@@ -166,7 +174,8 @@ def rooms(n_per_sweep: int = 25) -> None:
 
     for n in (T.N_PER_SWEEP, n_per_sweep):
         T.N_PER_SWEEP = n
-        err, flagged, failed = T.corpus()
+        sig: list = []
+        err, flagged, failed = T.corpus(sigmas=sig)
         k = len(T.SWEEPS) * n
         print(
             f"{k} exchanges: far found {k - failed}/{k}; |err| median {1e3 * np.median(err):.2f}"
@@ -174,6 +183,52 @@ def rooms(n_per_sweep: int = 25) -> None:
             f"> 10 cm {np.sum(err > 0.1)} (unflagged {np.sum((err > 0.1) & ~flagged)}); "
             f"> 2 cm {np.sum(err > 0.02)} (unflagged {np.sum((err > 0.02) & ~flagged)})",
             flush=True,
+        )
+        z = err / np.array(sig)
+        per = len(err) // len(T.SWEEPS) if failed == 0 else None
+        print(
+            f"   two-way sigma {1e3 * np.min(sig):.2f}-{1e3 * np.max(sig):.2f} mm; |err|/sigma "
+            f"median {np.median(z):.2f}, p90 {np.percentile(z, 90):.2f}, within 2 sigma "
+            f"{np.mean(z <= 2):.0%} (unflagged beyond {np.sum((z > 2) & ~flagged)})",
+            flush=True,
+        )
+        if per:
+            for i, (f0, f1, d) in enumerate(T.SWEEPS):
+                zi = z[i * per : (i + 1) * per]
+                print(f"   {f0:.0f}-{f1:.0f} Hz {d} s: |err|/sigma median {np.median(zi):.2f}, "
+                      f"within 2 sigma {np.mean(zi <= 2):.0%}")  # fmt: skip
+
+
+def transducer(n: int = 20) -> None:
+    """Narrow and wide sweeps through random minimum-phase chains of +-6 dB ripple (2-5
+    cosines of random period 1-20 kHz, 2nd-order band edges at 80-300 Hz and 15-20 kHz):
+    onset error against the chain's pulse peak over sigma, and the transducer term."""
+    import math
+
+    import test_template_transducer as T
+
+    from rangekit.signals.probe import linear_sweep
+
+    rng = np.random.default_rng(0)
+    f = np.fft.rfftfreq(T.N_FFT, 1.0 / T.FS)
+    for f0, f1 in [(8000.0, 12000.0), (2000.0, 6000.0), (17000.0, 20000.0), (200.0, 13000.0)]:
+        p = linear_sweep(f0, f1, 0.2, fs=T.FS)
+        rows = []
+        for _ in range(n):
+            L = np.zeros_like(f)
+            for _ in range(int(rng.integers(2, 6))):
+                per, ph = rng.uniform(1000, 20000), rng.uniform(0, 2 * math.pi)
+                L += np.cos(2 * math.pi * f / per + ph)
+            L *= 6.0 / 20.0 * math.log(10.0) / np.max(np.abs(L[(f > 100) & (f < 16000)]))
+            w = f / rng.uniform(80, 300)
+            L += np.log(w**2 / np.sqrt(1 + w**4) + 1e-12)
+            L += -0.5 * np.log(1 + (f / rng.uniform(15000, 20000)) ** 4)
+            rows.append(T._onset_error(T._minimum_phase_chain(L), p, 6.0, rng))
+        e, sig, td = (np.array(v) for v in zip(*rows, strict=True))
+        z = np.abs(e) / sig
+        print(
+            f"{f0:.0f}-{f1:.0f} Hz: |e| max {np.abs(e).max():.2f} samples, |e|/sigma median "
+            f"{np.median(z):.2f} max {z.max():.2f}, term {td.min():.2f}-{td.max():.2f}"
         )
 
 
@@ -206,4 +261,4 @@ if __name__ == "__main__":
         match(snrs=tuple(float(v) for v in sys.argv[2].split(",")))
     else:
         {"weighting": weighting, "dechorate": dechorate, "match": match, "rooms": rooms,
-         "speed": speed}[what]()  # fmt: skip
+         "speed": speed, "transducer": transducer}[what]()  # fmt: skip

@@ -69,9 +69,10 @@ def _flags(chans, probe):
     return names - {"dc_or_lowband"}
 
 
-def corpus(seed: int = 16):
+def corpus(seed: int = 16, sigmas: list | None = None):
     """Calibrated two-way errors (m), whether each has a (non-informational) flag, and
-    the number of exchanges whose far arrival was not found."""
+    the number of exchanges whose far arrival was not found; each range's reported
+    sigma (m) is appended to ``sigmas`` when given."""
     rng = np.random.default_rng(seed)
     errs, flagged, failed = [], [], 0
     for f0, f1, dur in SWEEPS:
@@ -93,6 +94,8 @@ def corpus(seed: int = 16):
             d = r.ranges[0].distance_m
             got, _ = cal.distance(d / ex.speed_m_s, 1e-5, speed_m_s=ex.speed_m_s)
             errs.append(got - ex.distance_m)
+            if sigmas is not None:
+                sigmas.append(r.ranges[0].sigma_m)
             flagged.append(bool(_flags(chans, probe)))
     return np.abs(errs), np.array(flagged), failed
 
