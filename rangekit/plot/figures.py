@@ -27,6 +27,7 @@ __all__ = [
     "RangesPlot",
     "SpectrogramPlot",
     "TrackPlot",
+    "TruthAgreement",
     "covariance_ellipse",
     "draw_cdf",
     "draw_matched",
@@ -40,6 +41,8 @@ __all__ = [
     "plot_spectrogram",
     "plot_track",
     "spectrogram_db",
+    "truth_agreement",
+    "truth_for",
 ]
 
 #: Most STFT frames a spectrogram shows (the hop grows for longer recordings).
@@ -391,6 +394,53 @@ def truth_for(series: Sequence, truth: float | Mapping[str, float] | None) -> di
     if isinstance(truth, Mapping):
         return {s.key: float(truth[s.key]) for s in series if s.key in truth}
     return {s.key: float(truth) for s in series}
+
+
+@dataclass(frozen=True)
+class TruthAgreement:
+    """How range series agree with their true distances (:func:`truth_agreement`).
+
+    Attributes
+    ----------
+    n : int
+        Ranges compared (finite distance, series with a true distance).
+    median_abs_error_m : float
+        Median ``|distance_m - truth|`` (m); NaN when ``n == 0``.
+    within_2sigma : float
+        Share of those ranges with ``|error| <= 2 sigma_m`` (NaN ``sigma_m`` counts as
+        outside); NaN when ``n == 0``.
+    """
+
+    n: int
+    median_abs_error_m: float
+    within_2sigma: float
+
+
+def truth_agreement(series: Sequence, truth: float | Mapping[str, float]) -> TruthAgreement:
+    """Median absolute error and share within 2 sigma of ``series`` against ``truth``.
+
+    ``truth`` is as in :func:`truth_for`; series without a true distance are left out.
+
+    Examples
+    --------
+    >>> from types import SimpleNamespace as S
+    >>> s = S(key="0-1", distance_m=np.array([2.001, 2.0, np.nan]), sigma_m=np.full(3, 1e-3))
+    >>> a = truth_agreement([s], 2.0)
+    >>> a.n, round(a.median_abs_error_m, 4), a.within_2sigma
+    (2, 0.0005, 1.0)
+    """
+    by_key = truth_for(series, truth)
+    use = [s for s in series if s.key in by_key]
+    if not use:
+        return TruthAgreement(0, math.nan, math.nan)
+    err = np.concatenate([np.abs(np.asarray(s.distance_m) - by_key[s.key]) for s in use])
+    sig = np.concatenate([np.asarray(s.sigma_m, dtype=float) for s in use])
+    ok = np.isfinite(err)
+    if not ok.any():
+        return TruthAgreement(0, math.nan, math.nan)
+    return TruthAgreement(
+        int(ok.sum()), float(np.median(err[ok])), float(np.mean(err[ok] <= 2 * sig[ok]))
+    )
 
 
 def draw_ranges(

@@ -26,6 +26,7 @@ Examples
 from __future__ import annotations
 
 import csv
+import io
 import json
 import math
 import os
@@ -47,6 +48,7 @@ __all__ = [
     "read_columns",
     "read_range_series",
     "read_track",
+    "read_truth_pairs",
 ]
 
 #: Input suffixes the readers accept.
@@ -57,7 +59,40 @@ _LIST_KEYS = ("ranges", "rows", "results")
 
 
 def _label(path: Path) -> str:
-    return str(path)
+    from rangekit.io.guard import is_stdin
+
+    return "standard input" if is_stdin(path) else str(path)
+
+
+def _stdin_table() -> tuple[str, str]:
+    """``(suffix, text)`` of a table on standard input (``-``), its format sniffed: a
+    JSON document when it starts with ``[`` or parses whole as an object, JSON lines when
+    it starts with ``{`` otherwise, CSV else."""
+    from rangekit.io.guard import MAX_TABLE_BYTES, read_stdin
+
+    data = read_stdin(MAX_TABLE_BYTES)
+    try:
+        text = data.decode("utf-8-sig")
+    except UnicodeDecodeError:
+        raise LogFormatError("standard input: not a UTF-8 text file") from None
+    head = text.lstrip()[:1]
+    if head == "[":
+        return ".json", text
+    if head == "{":
+        try:
+            json.loads(text)
+        except (ValueError, RecursionError):
+            return ".jsonl", text
+        return ".json", text
+    return ".csv", text
+
+
+def _header(lines) -> list[str]:
+    """The header cells of CSV ``lines`` (first line neither blank nor a comment)."""
+    for line in lines:
+        if line.strip() and not line.lstrip().startswith("#"):
+            return [h.strip() for h in next(csv.reader([line]))]
+    return []
 
 
 def _csv_header(path: Path) -> list[str]:
@@ -68,12 +103,9 @@ def _csv_header(path: Path) -> list[str]:
     try:
         regular_file(path)  # never opens a FIFO or a device
         with open(path, newline="", encoding="utf-8") as fh:
-            for line in fh:
-                if line.strip() and not line.lstrip().startswith("#"):
-                    return [h.strip() for h in next(csv.reader([line]))]
+            return _header(fh)
     except (OSError, UnicodeDecodeError, csv.Error, InputFileError):
         return []  # read_table raises the right error
-    return []
 
 
 def _msg(e: Exception) -> str:
@@ -95,8 +127,13 @@ def _json_rows(path: Path) -> list[tuple[str, dict]]:
         text = data.decode("utf-8-sig")
     except UnicodeDecodeError:
         raise LogFormatError(f"{name}: not a UTF-8 text file") from None
+    return _parse_json_rows(text, name, jsonl=path.suffix.lower() == ".jsonl")
+
+
+def _parse_json_rows(text: str, name: str, *, jsonl: bool) -> list[tuple[str, dict]]:
+    """``(where, row object)`` of JSON (or JSON lines) ``text`` named ``name``."""
     rows: list[tuple[str, dict]] = []
-    if path.suffix.lower() == ".jsonl":
+    if jsonl:
         for n, line in enumerate(text.splitlines(), start=1):
             if not line.strip():
                 continue
@@ -177,7 +214,9 @@ def read_columns(
     Parameters
     ----------
     path : path-like
-        The table; its suffix (:data:`INPUT_FORMATS`) chooses the format.
+        The table; its suffix (:data:`INPUT_FORMATS`) chooses the format. ``-`` is
+        standard input, its format sniffed (JSON when it starts with ``[`` or is one
+        object, JSON lines when it starts with ``{`` otherwise, else CSV).
     spec : mapping of str to Column
         Column name -> parsing rule (:class:`rangekit.io.csvlog.Column`). ``"time"``
         columns must not decrease, as in CSV logs.
@@ -199,17 +238,29 @@ def read_columns(
         Not a table of that format, a missing required column, a value that breaks its
         rule; the message names the file, the row and the column.
     """
+    from rangekit.io.guard import is_stdin
+
     path = Path(path)
-    suffix = path.suffix.lower()
+    text = None
+    if is_stdin(path):
+        suffix, text = _stdin_table()
+    else:
+        suffix = path.suffix.lower()
     if suffix not in INPUT_FORMATS:
         shown = repr(path.suffix) if path.suffix else "(no suffix)"
         raise InvalidParameterError(
             f"{str(path)!r}: unknown input format {shown} (use {', '.join(INPUT_FORMATS)})"
         )
     if suffix == ".csv":
+        if text is not None:
+            data = read_table(io.StringIO(text, newline=""), spec, name=_label(path))
+            return data, frozenset(spec) & frozenset(_header(text.splitlines()))
         data = read_table(path, spec, name=_label(path))
         return data, frozenset(spec) & frozenset(_csv_header(path))
-    rows = _json_rows(path)
+    if text is not None:
+        rows = _parse_json_rows(text, _label(path), jsonl=suffix == ".jsonl")
+    else:
+        rows = _json_rows(path)
     present = frozenset(c for c in spec if any(c in r for _, r in rows))
     missing = [c for c, s in spec.items() if s.required and c not in present]
     if missing:
@@ -296,7 +347,7 @@ def read_range_series(path: str | os.PathLike) -> list[RangeSeries]:
     cols, present = read_columns(path, _SERIES_SPEC)
     if "t_s" not in present:
         raise LogFormatError(
-            f"{path}: missing column 't_s' (the time of each range; `rangekit range "
+            f"{_label(Path(path))}: missing column 't_s' (the time of each range; `rangekit range "
             "--series` writes it)"
         )
     if {"a", "b"} <= present:
@@ -313,6 +364,37 @@ def read_range_series(path: str | os.PathLike) -> list[RangeSeries]:
         idx = idx[np.argsort(cols["t_s"][idx], kind="stable")]
         out.append(RangeSeries(k, cols["t_s"][idx], cols["distance_m"][idx], cols["sigma_m"][idx]))
     return out
+
+
+def read_truth_pairs(path: str | os.PathLike) -> dict[str, float]:
+    """True distance of each pair key (``"A-B"``, as :class:`RangeSeries` keys them) from
+    the JSON sidecar ``rangekit synth beepbeep`` writes (its ``pairs`` list).
+
+    Raises
+    ------
+    InputFileError
+        The file cannot be opened.
+    InvalidParameterError
+        Not JSON, or no ``pairs`` list of ``{a, b, distance_m}``; the message names the
+        file as ``--truth`` (the option of ``rangekit plot ranges`` that reads it).
+    """
+    from rangekit.errors import InputFileError
+    from rangekit.io.sidecar import read_json
+
+    try:
+        obj = read_json(path)  # guarded: regular file, size, nesting, finite numbers
+    except InputFileError as e:
+        if "JSON" in str(e) or "not UTF-8" in str(e):
+            raise InvalidParameterError(f"--truth '{path}' is not JSON: {e}") from None
+        raise
+    pairs = obj.get("pairs") if isinstance(obj, dict) else None
+    try:
+        return {f"{int(p['a'])}-{int(p['b'])}": float(p["distance_m"]) for p in pairs}
+    except (TypeError, KeyError, ValueError):
+        raise InvalidParameterError(
+            f"--truth '{path}' has no \"pairs\" list of {{a, b, distance_m}} (a sidecar "
+            "of `rangekit synth beepbeep`)"
+        ) from None
 
 
 # --- tracks ---------------------------------------------------------------------------------
@@ -438,7 +520,7 @@ def read_batch_errors(path: str | os.PathLike, *, by: str | None = None) -> Batc
     n = len(d)
     if not np.any(ok):
         raise LogFormatError(
-            f"{path}: no row has both distance_m and true_distance_m with status ok "
+            f"{_label(Path(path))}: no row has both distance_m and true_distance_m with status ok "
             f"({n} rows): no error to plot"
         )
     err = np.abs(d - truth)
