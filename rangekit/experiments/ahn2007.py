@@ -43,7 +43,7 @@ import pathlib
 import numpy as np
 
 from rangekit import _validate as V
-from rangekit.experiments.report import ExperimentReport
+from rangekit.experiments.report import ExperimentReport, ProgressCallback, Ticker
 from rangekit.localize.deadreckoning import dead_reckon
 from rangekit.localize.lmax import best_index, lmax_offline, lmax_online
 from rangekit.sim.ahn2007 import simulate_pedestrian, simulate_robot, step_length_stats
@@ -226,7 +226,11 @@ def _walk_rows(rep: ExperimentReport, res: list[dict], cond: str, paper, ln: str
 
 
 def run(
-    *, trials: int = DEFAULT_TRIALS, seed: int = 0, plots_dir: pathlib.Path | None = None
+    *,
+    trials: int = DEFAULT_TRIALS,
+    seed: int = 0,
+    plots_dir: pathlib.Path | None = None,
+    progress: ProgressCallback | None = None,
 ) -> ExperimentReport:
     """Reproduce Ahn & Yu §4 and return the table of paper vs measured numbers.
 
@@ -240,6 +244,8 @@ def run(
     plots_dir : pathlib.Path, optional
         If given (created if missing), write ``ahn2007_fig1.png`` .. ``ahn2007_fig4.png``
         like the paper's Fig. 1-4, from the first robot run and the first walk at 4.0 m².
+    progress : callable, optional
+        ``progress(done, total)`` after each robot run and each walk.
 
     Returns
     -------
@@ -255,9 +261,11 @@ def run(
         {"trials": n, "seed": seed, "pedestrian_walks": n * PEDESTRIAN_PER_TRIAL},
     )
     robot_seq, walk_seq, mis_seq = np.random.SeedSequence(seed).spawn(3)
-    robot = [_robot_trial(s) for s in robot_seq.spawn(n)]
+    walks = n * PEDESTRIAN_PER_TRIAL
+    tick = Ticker(2 * n + walks * (len(NOISE_VARS_M2) + 2), progress)
+    robot = [tick(_robot_trial(s)) for s in robot_seq.spawn(n)]
     robot_mis_seq, walk_mis_seq = mis_seq.spawn(2)
-    robot_mis = [_robot_trial(s, MISMATCH_ROBOT) for s in robot_mis_seq.spawn(n)]
+    robot_mis = [tick(_robot_trial(s, MISMATCH_ROBOT)) for s in robot_mis_seq.spawn(n)]
 
     def med(key, runs=robot):
         return float(np.median([r[key] for r in runs]))
@@ -341,10 +349,9 @@ def run(
         rep.add(metric, cond_mis, None, med(key, robot_mis), unit=unit, note=note_mis)
 
     mean_step, _ = step_length_stats()
-    walks = n * PEDESTRIAN_PER_TRIAL
     first_walk = None
     for var, s in zip(NOISE_VARS_M2, walk_seq.spawn(len(NOISE_VARS_M2)), strict=True):
-        res = [_walk_trial(c, var, mean_step) for c in s.spawn(walks)]
+        res = [tick(_walk_trial(c, var, mean_step)) for c in s.spawn(walks)]
         if var == 4.0:
             first_walk = res[0]
         paper = _PAPER_IMPROVEMENT_M if var == 4.0 else None
@@ -354,7 +361,7 @@ def run(
 
     mw = MISMATCH_WALK
     mis = [
-        _walk_trial(c, mw["noise_var_m2"], mw["l_max_m"], dof=mw["noise_dof"])
+        tick(_walk_trial(c, mw["noise_var_m2"], mw["l_max_m"], dof=mw["noise_dof"]))
         for c in walk_mis_seq.spawn(walks)
     ]
     _walk_rows(
@@ -367,7 +374,9 @@ def run(
     )
 
     lit_mean, _ = step_length_stats(r_low=-1.0)
-    lit = [_walk_trial(c, 4.0, lit_mean, r_low=-1.0) for c in walk_seq.spawn(1)[0].spawn(walks)]
+    lit = [
+        tick(_walk_trial(c, 4.0, lit_mean, r_low=-1.0)) for c in walk_seq.spawn(1)[0].spawn(walks)
+    ]
     rep.add(
         "improvement of mean error, online (oracle start)",
         "pedestrian, σ²=4.0 m², literal r ∈ [-1, 1]",

@@ -56,7 +56,7 @@ import numpy as np
 
 from rangekit import _validate as V
 from rangekit.errors import InvalidParameterError
-from rangekit.experiments.report import ExperimentReport
+from rangekit.experiments.report import ExperimentReport, ProgressCallback, Ticker
 from rangekit.localize.particle import (
     MODES,
     ParticleConfig,
@@ -204,6 +204,7 @@ def run_table(
     plots_dir: pathlib.Path | None = None,
     nus: Sequence[int] = NUS,
     mismatch: bool = True,
+    progress: ProgressCallback | None = None,
 ) -> ExperimentReport:
     """Table 1 with the ranging sweep over ``nus`` (what :func:`run` calls with :data:`NUS`).
 
@@ -226,6 +227,8 @@ def run_table(
     mismatch : bool
         Also run both filters with ranging at ν = 150 from a given start on walks
         simulated with :data:`MISMATCH` (module docstring). Default True.
+    progress : callable, optional
+        ``progress(done, total)`` after each walk (every configuration run on it).
 
     Returns
     -------
@@ -267,6 +270,7 @@ def run_table(
     dr_errs: list[TrackingError] = []
     dr_steps: list[np.ndarray] = []
     first: dict = {}
+    tick = Ticker(n, progress)
     for i in range(n):
         sim = simulate(rng=np.random.default_rng((seed, i, 0)))
         dr_errs.append(tracking_error(sim.dead_reckoning_m, sim.truth_m))
@@ -301,6 +305,7 @@ def run_table(
                 events_mis += len(trk.events)
         if i == 0:
             first["sim"] = sim
+        tick()
 
     mean = {c: _mean_error(v) for c, v in errs.items()}
     for method in ("girard", "sir"):
@@ -517,11 +522,16 @@ def _plots(plots_dir: pathlib.Path, first: dict, per_step: dict, dr_steps: list)
 
 
 def run(
-    *, trials: int = DEFAULT_TRIALS, seed: int = 0, plots_dir: pathlib.Path | None = None
+    *,
+    trials: int = DEFAULT_TRIALS,
+    seed: int = 0,
+    plots_dir: pathlib.Path | None = None,
+    progress: ProgressCallback | None = None,
 ) -> ExperimentReport:
     """Reproduce Girard et al. 2011 Table 1 (and Figs 10-13) in simulation.
 
     :func:`run_table` with the ranging sweep over :data:`NUS` (ν = 150, 1,000, 10,000,
-    100,000); see there for the parameters, rows and figures.
+    100,000); see there for the parameters (``progress``: one call per walk), rows and
+    figures.
     """
-    return run_table(trials=trials, seed=seed, plots_dir=plots_dir, nus=NUS)
+    return run_table(trials=trials, seed=seed, plots_dir=plots_dir, nus=NUS, progress=progress)

@@ -36,7 +36,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from rangekit import _validate as V
-from rangekit.experiments.report import ExperimentReport
+from rangekit.experiments.report import ExperimentReport, ProgressCallback, Ticker
 from rangekit.localize.range_ekf import RangeTrack, track_ranges
 from rangekit.sim.jiang2018 import JiangRun, paper_settings, simulate
 
@@ -231,12 +231,19 @@ def _trial(
 
 
 def run_condition(
-    cond: Condition, trials: int, rng: np.random.Generator, *, reference: bool = False
+    cond: Condition,
+    trials: int,
+    rng: np.random.Generator,
+    *,
+    reference: bool = False,
+    tick: Ticker | None = None,
 ) -> list[TrialResult]:
     """Simulate and track ``trials`` walks of one condition (and run the reference, from
-    a stream of its own: the walks are the same with or without it)."""
+    a stream of its own: the walks are the same with or without it); ``tick`` counts
+    each walk (:class:`~rangekit.experiments.report.Ticker`)."""
     ref_rng = np.random.default_rng(rng.bit_generator.seed_seq.spawn(1)[0]) if reference else None
-    return [_trial(cond, rng, ref_rng) for _ in range(trials)]
+    tick = Ticker(trials, None) if tick is None else tick
+    return [tick(_trial(cond, rng, ref_rng)) for _ in range(trials)]
 
 
 def run(
@@ -245,6 +252,7 @@ def run(
     seed: int = 0,
     plots_dir: pathlib.Path | None = None,
     reference: bool = False,
+    progress: ProgressCallback | None = None,
 ) -> ExperimentReport:
     """Run every condition of Jiang 2018 §5.3–5.4 and compare with Table 1.
 
@@ -260,6 +268,8 @@ def run(
         Also run :func:`reference_target2` (a 20,000-particle filter) on every trial and
         report target 2's median error with it: what the information allows under the
         tracker's model (about 0.3 s per trial).
+    progress : callable, optional
+        ``progress(done, total)`` after each trial of each condition.
 
     Returns
     -------
@@ -276,8 +286,9 @@ def run(
         {"trials": trials, "seed": seed, "accel_psd": ACCEL_PSD},
     )
     results = {}
+    tick = Ticker(trials * len(CONDITIONS), progress)
     for cond, ss in zip(CONDITIONS, seeds, strict=True):
-        rs = run_condition(cond, trials, np.random.default_rng(ss), reference=reference)
+        rs = run_condition(cond, trials, np.random.default_rng(ss), reference=reference, tick=tick)
         results[cond.label] = rs
         for target in (1, 2):
             med_p, p90_p = PAPER_TABLE1.get((target, cond.label), (None, None))

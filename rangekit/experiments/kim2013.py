@@ -42,7 +42,7 @@ import time
 import numpy as np
 
 from rangekit import _validate as V
-from rangekit.experiments.report import ExperimentReport
+from rangekit.experiments.report import ExperimentReport, ProgressCallback, Ticker
 from rangekit.localize.duhl import DUHLConfig, track_log, uhl_last_two
 from rangekit.sim.kim2013 import TRAJECTORIES, simulate
 
@@ -179,7 +179,11 @@ def _time_per_step(traj: int, seed: int, repeats: int = 5) -> tuple[float, float
 
 
 def run(
-    *, trials: int = DEFAULT_TRIALS, seed: int = 0, plots_dir: pathlib.Path | None = None
+    *,
+    trials: int = DEFAULT_TRIALS,
+    seed: int = 0,
+    plots_dir: pathlib.Path | None = None,
+    progress: ProgressCallback | None = None,
 ) -> ExperimentReport:
     """Reproduce Kim & Kim 2013 Tables II and III and return paper vs measured numbers.
 
@@ -194,6 +198,8 @@ def run(
         (trajectory 4): position and heading errors of DUHL and UHL-last-2 over time and
         the Tx ids in the available set, like the paper's Figs 8 and 10, plus
         ``kim2013_paths.png`` with the layouts and paths.
+    progress : callable, optional
+        ``progress(done, total)`` after each run (``2 trials + 1`` timing per trajectory).
 
     Returns
     -------
@@ -211,8 +217,9 @@ def run(
     )
     seqs = np.random.SeedSequence(seed).spawn(len(TRAJECTORIES))
     first: dict[int, dict] = {}
+    tick = Ticker(len(TRAJECTORIES) * (2 * n + 1), progress)
     for traj, sq in zip(sorted(TRAJECTORIES), seqs, strict=True):
-        res = [_trial(traj, s) for s in sq.spawn(n)]
+        res = [tick(_trial(traj, s)) for s in sq.spawn(n)]
         first[traj] = res[0]
         spec = TRAJECTORIES[traj]
         cond = f"trajectory {traj} ({spec.layout} Txs, {spec.speed_mps:.2f} m/s)"
@@ -268,14 +275,14 @@ def run(
             mean("uhl2", "Ep") / mean("duhl_uhl", "Ep"),
             note=note_uhl,
         )
-        mis = [_trial(traj, s, MISMATCH, oracle=False) for s in sq.spawn(n)]
+        mis = [tick(_trial(traj, s, MISMATCH, oracle=False)) for s in sq.spawn(n)]
         cond_mis = f"{cond_uhl}, {_MISMATCH_LABEL}"
         note_mis = "filters at the paper's settings (DUHLConfig(): sigma_d 0.01 m, no gate)"
         for metric, method, key, unit in _PLAIN_ROWS:
             if key in ("ES", "Ep_max"):
                 continue
             rep.add(metric, cond_mis, None, mean(method, key, mis), unit=unit, note=note_mis)
-        per_cycle, per_odo = _time_per_step(traj, seed)
+        per_cycle, per_odo = tick(_time_per_step(traj, seed))
         rep.add(
             "time per step, DUHL (one distance row + its odometry steps)",
             cond,

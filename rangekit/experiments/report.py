@@ -38,9 +38,18 @@ from __future__ import annotations
 
 import json
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import TypeVar
 
-__all__ = ["ExperimentReport", "ExperimentRow"]
+__all__ = ["ExperimentReport", "ExperimentRow", "ProgressCallback", "Ticker"]
+
+#: ``progress(done, total)``: called by an experiment's ``run`` after each unit of its
+#: work (a trial of one condition, a timing run); ``total`` is fixed for the run. The
+#: library never prints: ``rangekit experiment`` turns the calls into a progress bar.
+ProgressCallback = Callable[[int, int], None]
+
+_T = TypeVar("_T")
 
 
 @dataclass(frozen=True)
@@ -175,3 +184,31 @@ class ExperimentReport:
         for cells in [head, *body]:
             lines.append("  ".join(c.ljust(w) for c, w in zip(cells, widths, strict=True)).rstrip())
         return "\n".join(lines)
+
+
+class Ticker:
+    """Counts an experiment's units of work and reports each to a :data:`ProgressCallback`.
+
+    Calling it with a value counts one unit and returns the value, so a trial loop
+    reports progress without changing shape: ``[tick(_trial(s)) for s in seeds]``.
+
+    Examples
+    --------
+    >>> seen = []
+    >>> tick = Ticker(2, lambda done, total: seen.append((done, total)))
+    >>> [tick(x) for x in "ab"], seen
+    (['a', 'b'], [(1, 2), (2, 2)])
+    >>> Ticker(3, None)("no callback: just counted")
+    'no callback: just counted'
+    """
+
+    def __init__(self, total: int, progress: ProgressCallback | None) -> None:
+        self.total = int(total)
+        self.done = 0
+        self.progress = progress
+
+    def __call__(self, value: _T = None) -> _T:
+        self.done += 1
+        if self.progress is not None:
+            self.progress(self.done, self.total)
+        return value
