@@ -281,7 +281,10 @@ def estimate_clock_rates(
         )
     n = len(used[0].arrivals)
     t = [[a.onset_s for a in e.arrivals] for e in used]
-    v = [[np.maximum(a.sigma_s, _SIGMA_FLOOR_S) ** 2 for a in e.arrivals] for e in used]
+    # Differences of arrivals through the same transducers: their delay cancels.
+    v = [
+        [np.maximum(a.sigma_relative / a.fs, _SIGMA_FLOOR_S) ** 2 for a in e.arrivals] for e in used
+    ]
     t_own = np.array([tk[0][0] for tk in t])  # device 0's own beep, device 0's clock
     span = float(np.max(t_own) - np.min(t_own))
     if span < min_span_s:
