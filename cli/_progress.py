@@ -144,6 +144,23 @@ class Progress:
             self._last = now
             self._write(self.text(now))
 
+    def report(self, done: float, total: float) -> None:
+        """A library progress callback ``progress(done, total)`` (e.g.
+        :data:`rangekit.experiments.report.ProgressCallback`): sets the total, moves to
+        ``done``.
+
+        >>> import io
+        >>> t = iter([0.0, 10.0, 20.0])
+        >>> out = io.StringIO()
+        >>> p = Progress(0, "kim2013", unit="runs", stream=out, tty=False, interval_s=5,
+        ...              clock=lambda: next(t))
+        >>> p.report(1, 4)
+        >>> print(out.getvalue(), end="")
+        kim2013: 25.0% (1/4 runs), 0.1 runs/s, ETA 0:30
+        """
+        self.total = max(0.0, float(total))
+        self.update(float(done) - self.done)
+
     def close(self) -> None:
         """Write the final line (only if a line was written before) and end it."""
         if self.closed:

@@ -10,14 +10,16 @@ from rangekit_cli._options import (
     debug_option,
     emit,
     format_option,
-    heartbeat,
     note,
     output_option,
+    progress,
     verbosity_options,
 )
 
 #: Experiment name -> module (imported only when run). The module provides
-#: ``run(*, trials, seed, plots_dir) -> ExperimentReport`` and ``DEFAULT_TRIALS``.
+#: ``run(*, trials, seed, plots_dir, progress) -> ExperimentReport`` (``progress(done,
+#: total)`` after each trial: :data:`rangekit.experiments.report.ProgressCallback`) and
+#: ``DEFAULT_TRIALS``.
 EXPERIMENTS: dict[str, str] = {
     "ahn2007": "rangekit.experiments.ahn2007",
     "girard2011": "rangekit.experiments.girard2011",
@@ -66,7 +68,8 @@ def experiment_cmd(name, trials, seed, fmt, plots, output):
     kim2013 (Kim & Kim 2013: DUHL robot localisation from ceiling ultrasonic beacons,
     Tables II and III).
     Prints a table of metric, condition, paper, measured, unit (or the JSON report,
-    formats.md of the documentation). A progress note and the wall time go to stderr.
+    formats.md of the documentation). A progress note, a progress bar (runs done, rate,
+    ETA; on a terminal, or every 30 s with --verbose) and the wall time go to stderr.
 
     \b
     Examples:
@@ -83,8 +86,8 @@ def experiment_cmd(name, trials, seed, fmt, plots, output):
     plots_dir = None if plots is None else _plots_dir(plots)
     note(f"running {name}: {n} trial{'s' if n != 1 else ''}, seed {seed} ...")
     t0 = time.perf_counter()
-    with heartbeat(f"{name}: {n} trial{'s' if n != 1 else ''}"):
-        report = mod.run(trials=n, seed=seed, plots_dir=plots_dir)
+    with progress(0, name, unit="runs") as bar:
+        report = mod.run(trials=n, seed=seed, plots_dir=plots_dir, progress=bar.report)
     wall = time.perf_counter() - t0
     text = format_report(report, fmt)
     if not text.endswith("\n"):
