@@ -82,6 +82,7 @@ TESTS: dict[str, tuple[str, ...]] = {
     ),
     "rangekit/ranging/config.py": ("tests/ranging/test_config.py",),
     "rangekit/ranging/pipeline.py": ("tests/ranging/test_pipeline.py",),
+    "rangekit/ranging/series.py": ("tests/ranging/test_series_fast.py",),
     "rangekit/ranging/run.py": ("tests/ranging/test_run.py", "tests/cli/test_range_library.py"),
     "rangekit/ranging/calibration.py": (
         "tests/ranging/test_calibration_mutation.py",

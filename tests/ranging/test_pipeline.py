@@ -137,6 +137,16 @@ def test_spacing_hint_explains_a_wrong_spacing():
         f"; burst spacing does not fit: bursts are {1.6 * want:.0f} samples apart but the "
         f"beep's spacing is {want:.0f} samples ({b.spacing_s * 1e3:.1f} ms); check --spacing"
     )
+    # the rule's edges: a gap of exactly 0.3 spacings is an echo, not a spacing; a spacing
+    # off by exactly a quarter burst still fits
+    assert P._spacing_hint(np.array([0.0, 0.3 * want]), beep=b, fs=FS) == ""
+    quarter = 0.25 * b.burst_s * FS
+    assert P._spacing_hint(np.array([0.0, want + quarter]), beep=b, fs=FS) == ""
+    assert P._spacing_hint(np.array([0.0, want + quarter + 0.01]), beep=b, fs=FS) != ""
+    # two bursts are enough to see a spacing
+    assert "bursts are 8000 samples apart" in P._spacing_hint(
+        np.array([0.0, 8000.0]), beep=b, fs=FS
+    )
     # gaps under 0.3 spacings (a burst's own echo) are not spacings; none left: no hint
     assert P._spacing_hint(np.array([0.0, 0.2]) * want, beep=b, fs=FS) == ""
     mixed = np.array([0.0, 0.1, 1.6, 1.7, 3.2]) * want  # spacings 1.5, echoes 0.1
