@@ -71,6 +71,10 @@ TESTS: dict[str, tuple[str, ...]] = {
     ),
     "rangekit/detect/_kernels.py": ("tests/detect/test_kernels.py",),
     "rangekit/detect/condition.py": ("tests/detect/test_condition.py",),
+    "rangekit/detect/matched.py": (
+        "tests/detect/test_matched_fast.py",
+        "tests/detect/test_matched.py",
+    ),
     "rangekit/detect/xcorr.py": (
         "tests/detect/test_xcorr_mutation.py",
         "tests/detect/test_front.py",
@@ -84,6 +88,7 @@ TESTS: dict[str, tuple[str, ...]] = {
     "rangekit/ranging/pipeline.py": ("tests/ranging/test_pipeline.py",),
     "rangekit/ranging/series.py": ("tests/ranging/test_series_fast.py",),
     "rangekit/ranging/run.py": ("tests/ranging/test_run.py", "tests/cli/test_range_library.py"),
+    "rangekit/physics.py": ("tests/test_mutation_physics.py",),
     "rangekit/ranging/calibration.py": (
         "tests/ranging/test_calibration_mutation.py",
         "tests/cli/test_calibrate_cli.py",
