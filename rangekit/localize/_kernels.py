@@ -495,8 +495,8 @@ def run_bank(
     ``hparent`` (slot at the epoch before), ``hll`` (the epoch's log-likelihood),
     ``hcum``, ``hmirror`` (updated on a mirror line), ``hnre``, ``hacc``/``hnis`` (the
     epoch's rows), ``hcount`` (slots used) and the bank as a mixture ``mx, mP`` with the
-    branch probability ``mpb`` of every target (of the heaviest hypothesis: the weight
-    within max(1 m, 3 sigma) of it).
+    branch probability ``mpb`` of every target (of the heaviest hypothesis:
+    :func:`_mixture_into`).
     """
     n = hx.shape[0]
     d = X0.shape[1]
@@ -596,13 +596,15 @@ def run_bank(
             bstreak[s] = cstreak[kept[srt[s]]]
             bcum[s] = hcum[k, s]
         nb = nk
-        _mixture_into(hx[k], hP[k], hcum[k], nk, n_t, mx[k], mP[k], mpb[k])
+        _mixture_into(hx[k], hP[k], hcum[k], nk, n_t, mx[k], mP[k], mpb[k], lines[k], n_lines[k])
 
 
 @njit(cache=True)
-def _mixture_into(X, P, cum, nk, n_t, xbar, Pbar, pb):  # pragma: no cover - compiled
+def _mixture_into(X, P, cum, nk, n_t, xbar, Pbar, pb, lines, n_lines):  # pragma: no cover
     """The bank's moments as a Gaussian mixture and the branch probability of the
-    heaviest hypothesis (slot 0); :func:`rangekit.localize.range_ekf._mixture`."""
+    heaviest hypothesis (slot 0); :func:`rangekit.localize.range_ekf._mixture` and
+    :func:`~rangekit.localize.range_ekf._branch_probability` (``lines[1:n_lines]``: the
+    epoch's mirror lines)."""
     d = X.shape[1]
     w = np.empty(nk)
     top = cum[0]
@@ -632,6 +634,26 @@ def _mixture_into(X, P, cum, nk, n_t, xbar, Pbar, pb):  # pragma: no cover - com
             Pbar[c, r] = v
     for t in range(n_t):
         o = 4 * t
+        li = -1
+        for m in range(1, n_lines):
+            if int(lines[m, 0]) == o:
+                li = m
+                break
+        if li > 0:  # the mass on the reported hypothesis's side of the mirror line
+            px, py, nx, ny = lines[li, 1], lines[li, 2], -lines[li, 4], lines[li, 3]
+            sgn = 1.0 if (X[0, o] - px) * nx + (X[0, o + 1] - py) * ny >= 0 else -1.0
+            s = 0.0
+            for i in range(nk):
+                dist = (X[i, o] - px) * nx + (X[i, o + 1] - py) * ny
+                v = (
+                    nx * nx * P[i, o, o]
+                    + 2 * nx * ny * P[i, o, o + 1]
+                    + ny * ny * P[i, o + 1, o + 1]
+                )
+                sig = math.sqrt(max(v, 1e-24))
+                s += w[i] * 0.5 * math.erfc(-sgn * dist / sig / math.sqrt(2.0))
+            pb[t] = s
+            continue
         sig = math.sqrt(max(0.5 * (P[0, o, o] + P[0, o + 1, o + 1]), 0.0))
         rad = max(1.0, 3.0 * sig)
         s = 0.0

@@ -317,11 +317,13 @@ def test_target_2_filtered_on_the_jiang_lab_walks(case, speed, bound):
     assert np.median(err) < bound, err
 
 
-def _sure_and_right(case: str, speed: float) -> tuple[int, int]:
+def _sure_and_right(case: str, speed: float, *, last: bool = True) -> tuple[int, int]:
     sure = right = 0
     for run, trk in _jiang_runs(case, speed):
         e = np.hypot(*(trk.position(2) - run.update_targets_m[trk.n_skipped :, 1]).T)
         s = (trk.t_s >= 18.0) & (trk.p_branch[:, 1] >= 0.95)
+        if not last:
+            s[-1] = False
         sure += int(s.sum())
         right += int(np.sum(e[s] < 1.5))
     return sure, right
@@ -329,17 +331,34 @@ def _sure_and_right(case: str, speed: float) -> tuple[int, int]:
 
 def test_branch_probability_is_informative():
     """When the bank is sure of target 2's branch it is more often right than when it is
-    not (moderate noise, 0.8 m/s: 15 of 15 sure epochs right, measured)."""
+    not (moderate noise, 0.8 m/s: 16 of 16 sure epochs right, measured)."""
     sure, right = _sure_and_right("lab_moderate", 0.8)
     assert sure >= 8 and right >= 0.85 * sure, (sure, right)
 
 
-@pytest.mark.xfail(strict=True, reason="p_branch overconfident at the walks' turns (issue 18)")
+def test_branch_probability_is_calibrated_before_the_final_turn():
+    """At p_branch >= 0.95 the target is within 1.5 m >= 90 % of the time at every
+    epoch but the walk's last one (measured: 6 of 6 and 11 of 11 at 0.4 m/s, moderate
+    and skewed ranges; 42 of 44 over the six lab conditions; 44 of 44 on walks of seed
+    99). The branch probability is the mass on the reported side of the mirror line
+    (``range_ekf._branch_probability``); counting each hypothesis's weight whole, it was
+    >= 0.95 at 40 steady epochs of these two conditions (the last included) and right
+    at 26 (65 %)."""
+    sure = right = 0
+    for case in ("lab_moderate", "lab_mismatch"):
+        s, r = _sure_and_right(case, 0.4, last=False)
+        sure, right = sure + s, right + r
+    assert sure >= 10 and right >= 0.9 * sure, (sure, right)
+
+
+@pytest.mark.xfail(strict=True, reason="the walks' final sharp turn (issue 18)")
 def test_branch_probability_is_calibrated_at_095():
     """The acceptance: at p_branch >= 0.95 the target is within 1.5 m >= 90 % of the
-    time. Measured 10 of 18 (0.4 m/s) and 16 of 22 (skewed ranges): not met; the
-    20,000-particle reference (``jiang2018.reference_target2``) is calibrated on the
-    same walks, the Gaussian bank is not (docs/theory/jiang2018.md)."""
+    time, every steady epoch. Measured 6 of 8 (moderate, 0.4 m/s) and 11 of 12 (skewed
+    ranges): not met. Every miss is the walk's last epoch, a sharp turn at the office's
+    far wall where the constant-velocity prediction is 3-5 m (5-7 sigma) off and the
+    ranges put the target on the mirror side; the 20,000-particle reference misses there
+    too (docs/theory/jiang2018.md)."""
     for case in ("lab_moderate", "lab_mismatch"):
         sure, right = _sure_and_right(case, 0.4)
         assert right >= 0.9 * sure, (case, sure, right)
