@@ -19,6 +19,10 @@ unmutated baseline run must pass first. Survivors are printed with their line, s
 test can be written against each (some survivors are equivalent mutants: the changed code
 computes the same result, e.g. a ``<`` vs ``<=`` on a float that is never equal).
 
+Survivors judged equivalent mutants are listed in :data:`EQUIVALENT` (by the text of their
+line, with the reason); the summary counts them apart as well ("without them": killed over
+the sample less those), and marks them in the survivor list.
+
 Not part of CI: it runs the tests once per mutant (minutes per module). Run it niced on
 shared machines::
 
@@ -98,6 +102,26 @@ TESTS: dict[str, tuple[str, ...]] = {
         "tests/localize/test_ekf_mutation.py",
     ),
 }
+
+#: Survivors judged equivalent mutants (the changed code gives the same result on every
+#: input the module can reach), per module: (the site's source line, stripped; the
+#: mutation) -> why. Keyed by the line's text, not its number, so an entry outlives edits
+#: elsewhere in the file and lapses when its line changes. The summary reports the score
+#: with these set apart beside the plain score (which counts them as survivors).
+EQUIVALENT: dict[str, dict[tuple[str, str], str]] = {
+    "rangekit/detect/condition.py": {
+        ("low_pass_only = False", "False -> True"): "only `width` reads it, `tw` either way",
+        ("if k <= 1:", "<= -> <"): "k = 1 through the run loop gives the same copy of m",
+        ("if atten_db > 21:", "> -> >="): "both branches give beta 0 at exactly 21 dB",
+    },
+    "rangekit/ranging/config.py": {
+        ('if hasattr(sd, "tolist") and getattr(sd, "ndim", 0) > 0:  # a numpy array',
+         "> -> >="): "a 0-d array and its float pass the same checks",
+        ('if hasattr(sd, "tolist") and getattr(sd, "ndim", 0) > 0:  # a numpy array',
+         "0 -> 1"): "only objects with tolist and no ndim (array.array), undocumented",
+        ("self_distances(sd, 1)", "1 -> 2"): "one value broadcast to 2 passes the same checks",
+    },
+}  # fmt: skip
 
 _CMP = {
     ast.Lt: ast.LtE,
@@ -304,15 +328,28 @@ def summary(module: str, out: list[Outcome], n_sites: int, seed: int, rerun: boo
           f"(timeouts {sum(o.status == 'timeout' for o in valid)}, invalid "
           f"{len(out) - len(valid)})")  # fmt: skip
     lines = (ROOT / module).read_text(encoding="utf-8").splitlines()
+    known = EQUIVALENT.get(module, {})
+    n_eq = 0
     for s in surv:
-        print(f"  survived: line {s.line}: {s.what}: {lines[s.line - 1].strip()}")
+        text = lines[s.line - 1].strip()
+        why = known.get((text, s.what))
+        n_eq += why is not None
+        tag = f" [equivalent: {why}]" if why else ""
+        print(f"  survived: line {s.line}: {s.what}: {text}{tag}")
+    rest = len(valid) - n_eq
+    score_ne = killed / rest if rest else float("nan")
     note = f"{killed}/{len(valid)} of a seeded sample (seed {seed}) of {n_sites} sites"
     if rerun:
         note = f"{killed}/{len(valid)} earlier survivors killed now (of {n_sites} sites)"
+    if n_eq:
+        print(f"{module}: {n_eq} survivor(s) listed as equivalent; without them killed "
+              f"{killed}/{rest} = {100 * score_ne:.0f} %")  # fmt: skip
+        note += f"; {killed}/{rest} = {100 * score_ne:.0f} % without {n_eq} equivalent"
     metric = "earlier survivors killed" if rerun else "mutants killed by its own tests"
     row("mutation", f"{module} {metric}", 100 * score, "%", note=note)
     return {"module": module, "sites": n_sites, "sampled": len(out), "killed": killed,
-            "valid": len(valid), "score": score,
+            "valid": len(valid), "score": score, "equivalent": n_eq,
+            "score_without_equivalent": score_ne,
             "mutants": [{**asdict(o.site), "status": o.status, "seconds": o.seconds}
                         for o in out]}  # fmt: skip
 
