@@ -23,7 +23,7 @@ from rangekit.localize.anchor_ekf import track_anchors
 from rangekit.localize.range_ekf import track_ranges
 
 #: Options that apply only without / only with --rig.
-_NO_RIG = ("--accel-psd", "--gate", "--no-gate", "--cross-sign")
+_NO_RIG = ("--accel-psd", "--gate", "--no-gate", "--cross-sign", "--iterations", "--engine")
 _RIG_ONLY = ("--initial-pose", "--robust", "--steps")
 
 
@@ -47,6 +47,23 @@ _RIG_ONLY = ("--initial-pose", "--robust", "--steps")
     default=None,
     help="Sign of the robot-pose cross-covariance of Jiang 2018 eq (12): the derived one, "
     f"or the one the paper prints {shown_default(default(track_ranges, 'cross_sign'))}.",
+)
+@click.option(
+    "--iterations",
+    type=click.IntRange(1, 100),
+    default=None,
+    metavar="N",
+    help="Gauss-Newton steps of each update (the iterated EKF, started where the epoch's "
+    "fixes put the fixed targets); 1 is the plain EKF, linearised at the prediction "
+    f"{shown_default(default(track_ranges, 'iterations'))}.",
+)
+@click.option(
+    "--engine",
+    type=click.Choice(["compiled", "python", "numpy"]),
+    default=None,
+    help="How the hypothesis bank runs: one compiled call, driven from Python, or the "
+    "plain numpy reference (slow); the same track to rounding "
+    f"{shown_default(default(track_ranges, 'engine'))}.",
 )
 @rig_option(
     f"Track a body against the fixed anchors of this rig file ({doc_page('rigs.md')}); LOG "
@@ -74,8 +91,8 @@ _RIG_ONLY = ("--initial-pose", "--robust", "--steps")
     f"heading_sigma_rad ({doc_page('formats.md')}).",
 )
 @output_options
-def range_ekf_cmd(log, smooth, accel_psd, gate, no_gate, cross_sign, rig, robust,
-                  initial_pose, steps, fmt, output):  # fmt: skip
+def range_ekf_cmd(log, smooth, accel_psd, gate, no_gate, cross_sign, iterations, engine, rig,
+                  robust, initial_pose, steps, fmt, output):  # fmt: skip
     """Positions of people from acoustic ranges (the EKF of Jiang 2018 §4.4).
 
     LOG.csv is a measurement log (robot poses, relative fixes, ranges; formats.md of the
@@ -89,12 +106,15 @@ def range_ekf_cmd(log, smooth, accel_psd, gate, no_gate, cross_sign, rig, robust
     Examples:
       rangekit track range-ekf walk.csv --smooth -o track.csv
       rangekit track range-ekf walk.csv --format json --no-gate
+      rangekit track range-ekf walk.csv --iterations 1
     """
     given = {
         "--accel-psd": accel_psd is not None,
         "--gate": gate is not None,
         "--no-gate": bool(no_gate),
         "--cross-sign": cross_sign is not None,
+        "--iterations": iterations is not None,
+        "--engine": engine is not None,
         "--initial-pose": initial_pose is not None,
         "--robust": robust is not None,
         "--steps": steps is not None,
@@ -111,8 +131,9 @@ def range_ekf_cmd(log, smooth, accel_psd, gate, no_gate, cross_sign, rig, robust
     kw = gate_value(gate, no_gate)
     if accel_psd is not None:
         kw["accel_psd"] = accel_psd
-    if cross_sign is not None:
-        kw["cross_sign"] = cross_sign
+    for key, val in (("cross_sign", cross_sign), ("iterations", iterations), ("engine", engine)):
+        if val is not None:
+            kw[key] = val
     _jiang(log, kw, bool(smooth), fmt, output)
 
 
@@ -148,7 +169,8 @@ def _jiang(log, kw: dict, smooth: bool, fmt: str, output) -> None:
             f"; smoothed along the final best branch ({other} epochs where the causal "
             "filter reported another)"
         )
-    chosen = {k: kw.get(k, default(track_ranges, k)) for k in ("accel_psd", "gate", "cross_sign")}
+    keys = ("accel_psd", "gate", "cross_sign", "iterations", "engine")
+    chosen = {k: kw.get(k, default(track_ranges, k)) for k in keys}
     write_track(columns, rows, filter_name="range-ekf", log=name, fmt=fmt, output=output,
                 smoothed=smooth, extra=extra, summary=summary, chosen=chosen)  # fmt: skip
 

@@ -125,6 +125,25 @@ def test_range_ekf_filter_options(jiang_log):
     assert out != base
 
 
+def test_range_ekf_iterations_and_engine(jiang_log):
+    """``--iterations`` and ``--engine`` pass through to ``track_ranges``: the CLI's rows
+    equal the library's for each; one Gauss-Newton step (the plain EKF) gives another
+    track, the numpy reference engine the same one to rounding (issue 18)."""
+    from rangekit.io.tracklog import read_measurement_log
+    from rangekit.localize.range_ekf import track_ranges, track_rows
+
+    log = read_measurement_log(jiang_log)
+    base = np.array(_csv(ok(run(["track", "range-ekf", jiang_log])).stdout)[1], dtype=float)
+    one = ok(run(["track", "range-ekf", jiang_log, "--iterations", "1", "--format", "json"]))
+    obj = json.loads(one.stdout)
+    lib1 = track_rows(track_ranges(log, iterations=1))[1]
+    assert np.allclose(np.array(obj["rows"], dtype=float), lib1, rtol=0, atol=1e-9)
+    assert not np.allclose(lib1, base, rtol=0, atol=1e-6)
+    ref = ok(run(["track", "range-ekf", jiang_log, "--engine", "numpy"])).stdout
+    assert np.allclose(np.array(_csv(ref)[1], dtype=float), base, rtol=0, atol=1e-6)
+    assert "--iterations" in ok(run(["track", "range-ekf", "--help"])).stdout
+
+
 def test_output_file(tmp_path, jiang_log):
     out = tmp_path / "track.csv"
     r = ok(run(["track", "range-ekf", jiang_log, "-o", out]))
@@ -213,6 +232,8 @@ def test_option_not_for_this_filter(tmp_path, filt, extra, named):
         (["--accel-psd", "0"], "--accel-psd"),
         (["--accel-psd", "nan"], "--accel-psd"),
         (["--cross-sign", "other"], "--cross-sign"),
+        (["--iterations", "0"], "--iterations"),
+        (["--engine", "fast"], "--engine"),
         (["--format", "xml"], "--format"),
     ],
 )

@@ -96,7 +96,10 @@ def test_quiet_drops_the_summary_verbose_says_the_parameters(tmp_path):
     assert quiet.stderr == "" and quiet.stdout == normal.stdout
     verbose = ok(run(["track", "range-ekf", log, "-v", "--accel-psd", "0.1"]))
     lines = verbose.stderr.splitlines()
-    assert lines[0] == "rangekit: track range-ekf: accel_psd 0.1, gate 0.999, cross_sign physical"
+    assert lines[0] == (
+        "rangekit: track range-ekf: accel_psd 0.1, gate 0.999, cross_sign physical, "
+        "iterations 5, engine compiled"
+    )
     assert lines[1:] == normal.stderr.splitlines()
     assert_error(run(["track", "range-ekf", log, "-q", "-v"]), 2, "--quiet")
 
