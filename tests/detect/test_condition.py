@@ -198,6 +198,9 @@ def test_clip_mask_run_length_and_tolerance():
     assert m[40] and m[41] and m.sum() == 2 + 0  # the lower rail has no run
     x[41] = 0.0  # a single sample at the maximum: not clipped
     assert not C.clip_mask(x, min_count=99)[40]
+    x[60] = 1.0  # two samples at the maximum, apart: no run, not clipped
+    assert not C.clip_mask(x, min_count=99)[[40, 60]].any()
+    x[60] = 0.0
     # within rel_tol of the peak-to-peak range counts as at the rail
     x[41] = 1.0 - 0.5e-4 * 1.5
     assert C.clip_mask(x, min_count=99)[[40, 41]].all()
@@ -330,6 +333,10 @@ def test_active_floor_is_the_exponential_mean_and_ignores_silence():
     rare = np.concatenate([np.zeros(19000), e[:1000]])
     assert C.active_floor(rare) == 0.0
     assert C.active_floor(rare, min_live=0.01) == pytest.approx(C.active_floor(e[:1000]), rel=1e-12)
+    # a level, not a scale: energies far below 1 (a quiet 16-bit file) are not silence
+    for k in (1e-12, 1e-6, 1e6):
+        assert C.active_floor(k * e) == pytest.approx(k * C.active_floor(e), rel=1e-12)
+        assert C.active_floor(k * z) == pytest.approx(k * C.active_floor(e), rel=1e-12)
     assert C.active_floor(np.zeros(10)) == 0.0
     assert C.active_floor(np.zeros(0)) == 0.0
 

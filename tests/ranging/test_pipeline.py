@@ -156,6 +156,8 @@ def test_spacing_hint_explains_a_wrong_spacing():
 def test_wrong_spacing_reaches_the_error(chans):
     with pytest.raises(DetectionError, match="burst spacing does not fit"):
         P.detect_channel(chans[0], beep=Beep(spacing=7000), expected=2)
+    with pytest.raises(DetectionError, match="burst spacing does not fit"):  # the beep given
+        P.range_channels(chans, beep=Beep(spacing=7000))
 
 
 @pytest.fixture(scope="module")
