@@ -113,6 +113,10 @@ EQUIVALENT: dict[str, dict[tuple[str, str], str]] = {
         ("low_pass_only = False", "False -> True"): "only `width` reads it, `tw` either way",
         ("if k <= 1:", "<= -> <"): "k = 1 through the run loop gives the same copy of m",
         ("if atten_db > 21:", "> -> >="): "both branches give beta 0 at exactly 21 dB",
+        ("if len(x) * len(h) > 1 << 20:", "> -> >="):
+            "both convolution paths give the output to rounding (tested to 1e-9)",
+        ("if x.dtype not in (np.float32, np.float64):", "not in -> in"):
+            "the same mask (float32 thresholds compare as float64 ones); only a copy saved",
     },
     "rangekit/ranging/config.py": {
         ('if hasattr(sd, "tolist") and getattr(sd, "ndim", 0) > 0:  # a numpy array',

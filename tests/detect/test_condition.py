@@ -209,6 +209,9 @@ def test_clip_mask_run_length_and_tolerance():
     # min_run 3: a run of two does not count, a run of three does
     x[41] = 1.0
     assert not C.clip_mask(x, min_run=3, min_count=99).any()
+    x[60] = 1.0  # three samples at the rail, two of them adjacent: still no run of three
+    assert not C.clip_mask(x, min_run=3, min_count=99).any()
+    x[60] = 0.0
     x[42] = 1.0
     assert C.clip_mask(x, min_run=3, min_count=99)[40:43].all()
     # min_run 1: any sample at the rail
@@ -337,6 +340,9 @@ def test_active_floor_is_the_exponential_mean_and_ignores_silence():
     for k in (1e-12, 1e-6, 1e6):
         assert C.active_floor(k * e) == pytest.approx(k * C.active_floor(e), rel=1e-12)
         assert C.active_floor(k * z) == pytest.approx(k * C.active_floor(e), rel=1e-12)
+    # "at least min_live": exactly half the frames live is enough to leave the zeros out
+    half = np.concatenate([np.zeros(1000), e[:1000]])
+    assert C.active_floor(half) == pytest.approx(C.active_floor(e[:1000]), rel=1e-12)
     assert C.active_floor(np.zeros(10)) == 0.0
     assert C.active_floor(np.zeros(0)) == 0.0
 
@@ -401,6 +407,19 @@ def test_local_floor_default_min_live_is_a_quarter():
     assert C.local_floor(e, block=1000, min_live=0.35)[1499] == pytest.approx(
         C.active_floor(e), rel=0.02
     )
+
+
+def test_local_floor_block_with_exactly_min_live_has_its_own_level():
+    """'Fewer than min_live' takes the whole level: exactly a quarter live does not."""
+    rng = np.random.default_rng(9)
+    e = rng.exponential(1.0, 404)  # 4 blocks of 101, centres 50, 151, 252, 353
+    e[101:202] = 0.0
+    e[101:126] = 9.0 * rng.exponential(1.0, 25)  # 25 live frames of 101: exactly min_live
+    f = C.local_floor(e, block=101, min_live=25 / 101)
+    assert f[151] == pytest.approx(C.active_floor(e[101:126], min_live=0.0), rel=1e-12)
+    e[125] = 0.0  # 24 live: fewer, the whole series' level
+    f = C.local_floor(e, block=101, min_live=25 / 101)
+    assert f[151] == pytest.approx(C.active_floor(e), rel=1e-12)
 
 
 def test_local_floor_is_scale_invariant_with_silence_residue():
