@@ -84,7 +84,7 @@ from __future__ import annotations
 
 import functools
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 import numpy as np
 import scipy.signal
@@ -235,6 +235,7 @@ def render_exchanges(
     tail_s: float = 0.15,
     peak: float = 0.5,
     rng=None,
+    progress: Callable[[int, int], None] | None = None,
 ) -> SimResult:
     """Render the recordings of ``n_exchanges`` exchanges of ``source``, every device in turn.
 
@@ -276,6 +277,9 @@ def render_exchanges(
         Peak level of each rendered channel.
     rng : seed or Generator
         Randomness for the jitter, then the noise.
+    progress : callable, optional
+        ``progress(done, total)`` after each placed signal (``total = N^2 n_exchanges``
+        for N devices: every device's signal in every recording); nothing is printed.
 
     Returns
     -------
@@ -352,6 +356,7 @@ def render_exchanges(
 
     recordings, truth_dev = [], []
     onsets = np.zeros((n_exchanges, n_dev, n_dev))
+    done, total = 0, n_dev * n_dev * n_exchanges
     for i, di in enumerate(devices):
         rate_i = di.fs * (1 + di.clock_ppm * 1e-6)
         n_samp = int(math.ceil((t_end - di.rec_start_s) * rate_i))
@@ -362,6 +367,9 @@ def render_exchanges(
             w, m0 = _received(src, dj, di, rate_j=rate_j, c=c, room=room)
             shift_s = m0 / rate_j
             for e in range(n_exchanges):
+                if progress is not None:
+                    done += 1
+                    progress(done, total)
                 t_w = play[e, j] + shift_s  # absolute time of w[0]
                 n0 = max(0, int(math.floor((t_w - di.rec_start_s) * rate_i)) - 2 * _HW)
                 n1 = min(

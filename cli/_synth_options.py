@@ -1,0 +1,59 @@
+"""Options and helpers shared by the ``rangekit synth`` commands."""
+
+from __future__ import annotations
+
+import click
+from rangekit_cli._options import check_outputs, detail, float_list
+
+
+def _impair_spec(ctx, param, value):
+    """--impair SPEC parsed now, before anything is rendered or written."""
+    if value is None:
+        return None
+    from rangekit.errors import InvalidParameterError
+    from rangekit.sim.impair import parse_impairments
+
+    try:
+        return parse_impairments(value)
+    except InvalidParameterError as e:
+        raise click.BadParameter(str(e), ctx=ctx, param=param) from None
+
+
+impair_option = click.option(
+    "--impair",
+    "impairments",
+    metavar="SPEC",
+    default=None,
+    callback=_impair_spec,
+    help="Impair the rendered recording before writing it: KEY=VALUE[,...] with keys dc, "
+    "clip_db, lf_db, hum_db, hum_hz, pink_db, interference (speech|music), interference_db, "
+    "interference_max_hz, agc_db, agc_steps, silence_s, lp_hz, hp_hz; levels in dB over "
+    "the rendered noise floor (impairments.md of the documentation).",
+)
+
+
+def write(syn, output: str) -> None:
+    """Check every file ``syn`` (a :class:`rangekit.sim.scenarios.Synthesis`) writes
+    against the command's inputs, then write them."""
+    check_outputs(syn.paths(output))
+    syn.write(output)
+
+
+def parse_point(text: str, name: str) -> list[float]:
+    v = float_list(text, name=name)
+    if v is None or len(v) != 3:
+        raise click.BadParameter(f"{text!r} must be X,Y,Z in metres", param_hint=name)
+    return v
+
+
+def describe_seed(seed) -> None:
+    """--verbose: the seed of the noise and draws (none: a fresh one, not reproducible)."""
+    what = f"seed {seed}" if seed is not None else "no --seed: fresh randomness, not reproducible"
+    detail(f"rangekit: synth: {what}")
+
+
+def parse_pose(text: str, name: str = "--pose") -> list[float]:
+    v = float_list(text, name=name)
+    if v is None or len(v) != 3:
+        raise click.BadParameter(f"{text!r} must be X,Y,HEADING (m, m, degrees)", param_hint=name)
+    return v

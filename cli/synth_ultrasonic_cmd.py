@@ -1,0 +1,262 @@
+"""``rangekit synth oneway`` and ``synth echo``: simulated ultrasonic recordings."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import click
+from rangekit_cli._options import (
+    FiniteRange,
+    debug_option,
+    float_list,
+    note,
+    temperature_option,
+    transducer_q_options,
+    verbosity_options,
+)
+from rangekit_cli._synth_options import describe_seed, impair_option, parse_point, parse_pose, write
+
+
+def _ultrasonic_synth_options(f):
+    """--temperature, --transducer-q, --fs, --seed, -o, -q/-v and --debug of the ultrasonic
+    synth commands."""
+    opts = [
+        transducer_q_options(
+            FiniteRange(0.5, 100.0),
+            4.0,
+            "Q of the transducers (Tx and Rx; the echo sensor has one).",
+        ),
+        click.option(
+            "--fs",
+            type=FiniteRange(1000.0, 1e7),
+            default=192000.0,
+            show_default=True,
+            help="Sample rate, Hz.",
+        ),
+        click.option(
+            "--seed", type=click.IntRange(0, 2**63 - 1), default=None, help="Random seed, >= 0."
+        ),
+        click.option("--no-noise", is_flag=True, help="Render without noise."),
+        impair_option,
+        click.option(
+            "-o",
+            "--output",
+            type=click.Path(dir_okay=False),
+            required=True,
+            help="WAV file to write.",
+        ),
+    ]
+    for o in reversed(opts):
+        f = o(f)
+    return verbosity_options(debug_option(temperature_option(f)))
+
+
+@click.command("oneway")
+@click.option(
+    "--tx",
+    "txs",
+    multiple=True,
+    metavar="X,Y",
+    help="A ceiling transmitter's position in metres (repeat; fired in this order) "
+    "[default: six Txs on a 1.5 m grid around the origin].",
+)
+@click.option(
+    "--ceiling",
+    type=FiniteRange(0.1, 100.0),
+    default=2.011,
+    show_default=True,
+    help="Transmitter height z_T above the receivers' plane, m (Kim & Kim 2013 §V).",
+)
+@click.option(
+    "--pose",
+    default="0,0,0",
+    show_default=True,
+    metavar="X,Y,DEG",
+    help="Robot pose: position in metres, heading in degrees.",
+)
+@click.option(
+    "--radius",
+    type=FiniteRange(0.0, 10.0),
+    default=0.19,
+    show_default=True,
+    help="Receiver circle radius r_R, m (receivers at 0, 120, 240 degrees).",
+)
+@click.option(
+    "--windows",
+    "n_windows",
+    type=click.IntRange(1, 100000),
+    default=None,
+    help="Activation windows to render [default: one per Tx].",
+)
+@click.option(
+    "--period",
+    type=FiniteRange(0.001, 60.0),
+    default=0.2,
+    show_default=True,
+    help="Activation period, s (5 Hz).",
+)
+@click.option(
+    "--latency",
+    type=FiniteRange(0.0, 1.0),
+    default=0.0,
+    show_default=True,
+    help="Trigger-to-drive latency, s.",
+)
+@click.option(
+    "--snr-db",
+    type=FiniteRange(-60.0, 200.0),
+    default=20.0,
+    show_default=True,
+    help="In-band SNR of the weakest direct arrival, dB (band: the code's main lobe).",
+)
+@click.option(
+    "--room", default=None, metavar="LX,LY,LZ", help="Shoebox room (reflections); positions inside."
+)
+@click.option(
+    "--absorption",
+    type=FiniteRange(0.0, 1.0),
+    default=0.3,
+    show_default=True,
+    help="Wall energy absorption.",
+)
+@click.option(
+    "--order",
+    type=click.IntRange(0, 6),
+    default=1,
+    show_default=True,
+    help="Image-source reflection order.",
+)
+@click.option(
+    "--reflection",
+    "reflections",
+    multiple=True,
+    metavar="DELAY_MS,GAIN",
+    help="An extra path for every arrival: DELAY_MS after the direct one, GAIN times it (repeat).",
+)
+@_ultrasonic_synth_options
+def synth_oneway(
+    txs, ceiling, pose, radius, n_windows, period, latency, snr_db, no_noise, room, absorption,
+    order, reflections, temp_c, q, fs, seed, impairments, output,
+):  # fmt: skip
+    """Ceiling beacons fired in turn, heard by a robot's three receivers (Kim & Kim 2013).
+
+    Each activation window (--period) starts with the RF trigger; the window's Tx drives
+    a Barker-7 burst on 40 kHz --latency later. Writes OUTPUT (one channel per receiver,
+    16-bit PCM, sample 0 = the first trigger), OUTPUT with suffix .json (the geometry,
+    each window's Tx and its true distance to every receiver) and OUTPUT with suffix
+    .beacons.json: the beacon file of `locate` and `track duhl` (Tx ids 0, 1, ...
+    in firing order, z = --ceiling above the receivers).
+
+    \b
+    Examples:
+      rangekit synth oneway --tx 1,0.5 --tx -1,2 --pose 0.2,0.1,30 --seed 1 -o ow.wav
+      rangekit range --scheme oneway ow.wav --period 0.2
+      rangekit range --scheme oneway ow.wav --period 0.2 --tx-order 0,1 --format csv -o r.csv
+      rangekit locate --beacons ow.beacons.json --ranges r.csv
+    """
+    import math
+
+    from rangekit.sim import ShoeboxRoom
+    from rangekit.sim.scenarios import DEFAULT_TXS, synth_oneway
+
+    pts = []
+    for t in txs:
+        v = float_list(t, name="--tx")
+        if len(v) != 2:
+            raise click.BadParameter(f"{t!r} must be X,Y in metres", param_hint="--tx")
+        pts.append(v)
+    px, py, deg = parse_pose(pose)
+    room_obj = None
+    if room is not None:
+        room_obj = ShoeboxRoom(tuple(parse_point(room, "--room")), absorption, order)
+    extra = []
+    for r in reflections:
+        v = float_list(r, name="--reflection", lo=0.0)
+        if len(v) != 2 or v[0] <= 0:
+            raise click.BadParameter(
+                f"{r!r} must be DELAY_MS,GAIN (> 0)", param_hint="--reflection"
+            )
+        extra.append((v[0] * 1e-3, v[1]))
+    syn = synth_oneway(
+        txs_m=pts or DEFAULT_TXS, ceiling_m=ceiling, pose=(px, py, math.radians(deg)),
+        radius_m=radius, n_windows=n_windows, period_s=period, latency_s=latency,
+        snr_db=None if no_noise else snr_db, room=room_obj, extra_paths=extra, temp_c=temp_c,
+        q=q, fs=fs, seed=seed, impairments=impairments, name=output,
+    )  # fmt: skip
+    write(syn, output)
+    describe_seed(seed)
+    out, truth, n_tx = Path(output), syn.sidecar(output), len(pts or DEFAULT_TXS)
+    note(
+        f"wrote {out.name} ({len(truth['windows'])} windows x {syn.recordings[0].shape[1]} "
+        f"receivers), {out.with_suffix('.json').name} and {truth['beacons']} (Tx ids "
+        f"0-{n_tx - 1} in firing order: range with --tx-order "
+        f"{','.join(str(i) for i in range(n_tx))})"
+    )
+
+
+@click.command("echo")
+@click.option(
+    "--map",
+    "map_path",
+    type=click.Path(dir_okay=False),
+    required=True,
+    help="Floor plan JSON (floorplan.md of the documentation).",
+)
+@click.option(
+    "--pose",
+    "poses",
+    multiple=True,
+    required=True,
+    metavar="X,Y,DEG",
+    help="Carrier pose for one ranging cycle: metres and heading in degrees (repeat).",
+)
+@click.option(
+    "--mount",
+    type=FiniteRange(-360.0, 360.0),
+    default=0.0,
+    show_default=True,
+    help="Sensor axis relative to the heading, degrees (+90 = left).",
+)
+@click.option(
+    "--snr-db",
+    type=FiniteRange(-60.0, 200.0),
+    default=20.0,
+    show_default=True,
+    help="In-band SNR of an on-axis echo at the 6 m maximum range, dB.",
+)
+@_ultrasonic_synth_options
+def synth_echo(map_path, poses, mount, snr_db, no_noise, temp_c, q, fs, seed, impairments, output):
+    """SRF02 echo recording in a floor plan: one 70 ms ranging cycle per --pose.
+
+    Sample 0 of each cycle is the ping (8 cycles of 40 kHz). The recording holds the
+    ring-down and every first-order specular wall echo within the beam, with the beam
+    pattern's two-way gain and 1/(2d) spreading. Writes OUTPUT (mono, 16-bit PCM) and
+    OUTPUT with suffix .json: per cycle the pose, the SRF02 model's range (null = out of
+    range) and the rendered echoes.
+
+    \b
+    Examples:
+      rangekit synth echo --map plan.json --pose 1,1,90 --pose 1,1.5,90 -o echo.wav
+      rangekit range --scheme echo echo.wav --period 0.07
+    """
+    import math
+
+    from rangekit.floorplan import load_floorplan
+    from rangekit.sim.scenarios import synth_echo
+
+    plan = load_floorplan(map_path)
+    pts = []
+    for p in poses:
+        x, y, deg = parse_pose(p)
+        pts.append((x, y, math.radians(deg)))
+    syn = synth_echo(
+        plan, pts, mount_angle_rad=math.radians(mount), snr_db=None if no_noise else snr_db,
+        temp_c=temp_c, q=q, fs=fs, seed=seed, impairments=impairments, map_name=str(map_path),
+    )  # fmt: skip
+    write(syn, output)
+    describe_seed(seed)
+    out, truth = Path(output), syn.truth
+    ranges = ", ".join(
+        "-" if w["distance_m"] is None else f"{w['distance_m']:.3f} m" for w in truth["windows"]
+    )
+    note(f"wrote {out.name} and {out.with_suffix('.json').name} (model: {ranges})")
