@@ -175,8 +175,8 @@ def _q_help(ow, ec) -> str:
         f"fitting the burst through resonators of unknown Q (from {ow.transducer.q:g}) and f0 "
         "(with overlapping reflections), the estimates pooled per receiver and transmitter; "
         "Q = known, folded into the template; 0 = the bare drive (the transducers' delay "
-        "stays in the ranges) [default: auto]. echo: the template's Q (auto = "
-        f"{ec.transducer.q:g})."
+        "stays in the ranges) [default: auto]. echo: the same for the one transducer that "
+        f"sends and receives (auto: fitted from Q {ec.transducer.q:g})."
     )
 
 
@@ -247,6 +247,8 @@ def ultrasonic_setup(kw: dict, *, scheme: str) -> OneWaySetup | EchoSetup:
         for k in ("latency", "tx_order"):
             if kw.get(k) is not None:
                 raise click.UsageError(f"--{k.replace('_', '-')} applies to --scheme oneway only")
+        if q is not None:
+            cfg["fit_transducer"] = q == "auto"
         return EchoSetup(**cfg)
     if q is not None:
         cfg["fit_transducers"] = q == "auto"

@@ -328,6 +328,10 @@ class EchoSetup:
     transducer : Transducer or None
         The transducer (it sends and receives) [default: Q 4 at 40 kHz]; None = the bare
         drive.
+    fit_transducer : bool
+        Fit each echo through the transducer twice with Q and f0 unknown (``transducer``
+        is then only the starting point); False folds ``transducer`` into the template
+        as it is.
     period_s : float, optional
         The file holds consecutive ranging cycles of this length, s (0.07 for the SRF02,
         :data:`~rangekit.ranging.echo.SRF02_CYCLE_S`) [default: one].
@@ -341,6 +345,7 @@ class EchoSetup:
 
     burst: CodedBurst = field(default_factory=_srf02_ping)
     transducer: Transducer | None = _ECHO["transducer"]
+    fit_transducer: bool = _ECHO["fit_transducer"]
     period_s: float | None = _ECHO["period_s"]
     min_range_m: float = _ECHO["min_range_m"]
     max_range_m: float = _ECHO["max_range_m"]
@@ -358,6 +363,7 @@ class EchoSetup:
             "burst": self.burst,
             "period_s": self.period_s,
             "transducer": self.transducer,
+            "fit_transducer": self.fit_transducer,
             "min_range_m": self.min_range_m,
             "max_range_m": self.max_range_m,
             **self.detection.kwargs(),

@@ -3,8 +3,14 @@
 Sample 0 is the ping; the earliest echo after the ring-down blanking (the minimum range,
 15 cm) gives ``c * t / 2``; nothing within the maximum range (6 m) is "out of range"
 (distance NaN). A recording may hold many ranging cycles at a known period (70 ms for the
-SRF02). The template is the ping through the transducer twice (it sends and receives);
-the arrival is the matched filter's first path (:mod:`rangekit.detect.matched`).
+SRF02). The ping passes the transducer twice (it sends and receives). Each echo is timed
+by the transducer fit of one-way ranging (:mod:`rangekit.detect.fitted`: the ping
+through two equal resonators of unknown Q and f0, with overlapping reflections, or the
+stagger-tuned model, pooled over the cycles), so the range does not depend on knowing
+the transducer's Q: with the Q 4 template assumed, echoes through Q 8-20 transducers
+came out 8-25 mm long at a sigma of 0.3-0.5 mm (``docs/theory/ultrasonic.md``,
+pulse-echo). ``fit_transducer=False`` keeps the fixed template's matched-filter first
+path (:mod:`rangekit.detect.matched`).
 
 Examples
 --------
@@ -36,6 +42,7 @@ from rangekit.detect.matched import (
 )
 from rangekit.errors import IncompatibleInputError, InvalidParameterError
 from rangekit.physics import DEFAULT_TEMP_C
+from rangekit.ranging.oneway import _fit_model
 from rangekit.ranging.tof import _DEFAULT_TX, ToF, _as_channels, _ranges, _speed, _windows
 from rangekit.signals.barker import CodedBurst, check_burst_fits, srf02_ping
 from rangekit.signals.probe import Probe
@@ -69,6 +76,8 @@ def range_echo(
     windows: np.ndarray | None = None,
     first_window: int = 0,
     probe: Probe | None = None,
+    fit_transducer: bool = True,
+    pool: bool = True,
 ) -> list[ToF]:
     """Pulse-echo ranges (SRF02 style) from a recording whose sample 0 is the ping.
 
@@ -76,8 +85,13 @@ def range_echo(
     earlier than ``2 min_range_m / c`` fall in the ring-down and are not searched; nothing
     before ``2 max_range_m / c`` means out of range (distance NaN, ``None`` in JSON).
     ``period_s`` splits a log of many ranging cycles (0.07 s for the SRF02), or
-    ``windows`` gives them explicitly. Other parameters as :func:`range_oneway` (with
-    ``probe`` the template is the probe and ``burst``, ``transducer`` are unused).
+    ``windows`` gives them explicitly. ``fit_transducer`` (default True) times each echo
+    by fitting the ping through the transducer twice with Q and f0 unknown
+    (``transducer`` is the starting point and sets the nominal f0), ``pool`` pools the
+    estimates over the cycles of each channel (the sensor's transducer is one); False
+    folds ``transducer`` into the template as it is. Other parameters as
+    :func:`range_oneway` (with ``probe`` the template is the probe and ``burst``,
+    ``transducer`` are unused).
     """
     fs = V.sample_rate(fs)
     burst = srf02_ping() if burst is None else burst
@@ -105,6 +119,13 @@ def range_echo(
         if probe is None
         else probe.at_rate(fs)
     )
+    # The ping passes the one transducer twice: two equal resonators, the transducer
+    # fit's own model (helper of range_oneway; ``transducer`` is its starting point).
+    model, q0 = (
+        (None, 4.0)
+        if probe is not None
+        else _fit_model(burst, fs, (transducer, transducer), fit_transducer)
+    )
     rows = _ranges(
         x,
         fs=fs,
@@ -119,6 +140,9 @@ def range_echo(
         thresholds={"k_noise": k_noise, "k_detect": k_detect, "rel_threshold": rel_threshold},
         block=block,
         first_window=first_window,
+        model=model,
+        q0=q0,
+        pool=pool,
     )
     # Paths found at the very edges of the search are the blanking's or timeout's edge.
     out = []

@@ -294,29 +294,36 @@ def test_echo_series_equals_the_whole_file_path(echo_cycle, tmp_path, block_s):
     with sf.SoundFile(path, "r+") as f:
         f.seek(7 * CYCLE + 1000)
         f.write(1e-3 * np.random.default_rng(6).standard_normal(8000))
-    whole = range_ultrasonic_files([path], scheme="echo", period_s=0.07)
-    seen = []
-    got = list(
-        range_series_ultrasonic(
-            path, scheme="echo", period_s=0.07, block_s=block_s,
-            progress=lambda d, t: seen.append(d),
-        )
-    )  # fmt: skip
-    assert [w.window for w in got] == list(range(20))
-    assert [w.t_s for w in got] == pytest.approx([k * 0.07 for k in range(20)], abs=1e-12)
-    rows = [r for w in got for r in w.rows(scheme="echo")]
-    assert len(rows) == len(whole) == 20
-    for r, q in zip(rows, whole, strict=True):
-        assert list(r) == list(SERIES_FIELDS["echo"])
-        assert (r["window"], r["channel"]) == (q["window"], q["channel"])
-        for k in ("distance_m", "sigma_m", "snr_db", "arrival_s"):
-            if q[k] is None:
-                assert r[k] is None
+    # Each cycle on its own (pool=False): the series is the whole-file code, exactly. By
+    # default the transducer's (Q, f0) estimate is pooled over the cycles ranged together
+    # (a block's in the series, the file's otherwise): then within the ranges' sigma.
+    for pool in (False, True):
+        whole = range_ultrasonic_files([path], scheme="echo", period_s=0.07, pool=pool)
+        seen = []
+        got = list(
+            range_series_ultrasonic(
+                path, scheme="echo", period_s=0.07, block_s=block_s, pool=pool,
+                progress=lambda d, t, seen=seen: seen.append(d),
+            )
+        )  # fmt: skip
+        assert [w.window for w in got] == list(range(20))
+        assert [w.t_s for w in got] == pytest.approx([k * 0.07 for k in range(20)], abs=1e-12)
+        rows = [r for w in got for r in w.rows(scheme="echo")]
+        assert len(rows) == len(whole) == 20
+        for r, q in zip(rows, whole, strict=True):
+            assert list(r) == list(SERIES_FIELDS["echo"])
+            assert (r["window"], r["channel"]) == (q["window"], q["channel"])
+            if q["distance_m"] is None:
+                assert r["distance_m"] is None
+            elif pool:
+                tol = 2.0 * max(r["sigma_m"], q["sigma_m"])
+                assert r["distance_m"] == pytest.approx(q["distance_m"], abs=tol)
             else:
-                assert r[k] == pytest.approx(q[k], rel=1e-9, abs=1e-12)
-    assert rows[7]["distance_m"] is None
-    assert rows[0]["distance_m"] == pytest.approx(1.5, abs=2e-3)
-    assert seen[-1] == pytest.approx(1.4) and seen == sorted(seen)
+                for k in ("distance_m", "sigma_m", "snr_db", "arrival_s"):
+                    assert r[k] == pytest.approx(q[k], rel=1e-9, abs=1e-12)
+        assert rows[7]["distance_m"] is None
+        assert rows[0]["distance_m"] == pytest.approx(1.5, abs=2e-3)
+        assert seen[-1] == pytest.approx(1.4) and seen == sorted(seen)
 
 
 def test_oneway_series_keeps_window_numbers_and_tx_ids(tmp_path):
