@@ -118,6 +118,10 @@ EQUIVALENT: dict[str, dict[tuple[str, str], str]] = {
         ("if x.dtype not in (np.float32, np.float64):", "not in -> in"):
             "the same mask (float32 thresholds compare as float64 ones); only a copy saved",
     },
+    "rangekit/physics.py": {
+        ("c: float = field(init=False, repr=False, compare=False)", "False -> True"):
+            "c is a function of the compared fields: the same equality and hash classes",
+    },
     "rangekit/ranging/config.py": {
         ('if hasattr(sd, "tolist") and getattr(sd, "ndim", 0) > 0:  # a numpy array',
          "> -> >="): "a 0-d array and its float pass the same checks",

@@ -6,6 +6,7 @@ its options (issue 21: the mutation check of the module; the audio paths are in
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -46,6 +47,8 @@ def test_clock_rate_correction_keeps_rates_as_floats():
     c = R.ClockRateCorrection(ppm=[80, np.float32(1.5)])
     assert c.ppm == (80.0, 1.5) and all(type(v) is float for v in c.ppm)
     assert R.ClockRateCorrection().ppm is None
+    with pytest.raises(dataclasses.FrozenInstanceError):  # built once, checked once
+        c.ppm = (1.0,)
 
 
 def test_series_rows_two_way_counts_failed_exchanges():
