@@ -174,6 +174,34 @@ def test_acceptance_with_initial_pose(runs):
         assert len(trk.downweighted) > 0.06 * trk.t_s.size  # the outliers, and more
 
 
+@pytest.mark.parametrize(
+    ("rate_hz", "odometry_hz", "duration_s", "measured"),
+    [
+        (5.0, 20.0, 400.0, "bias error 1.0 / 1.8 cm, RMSE 0.056 / 0.061 m (ML 0.19 / 0.20)"),
+        (10.0, 7.8, 200.0, "bias error 2.5 / 1.4 cm, RMSE 0.053 / 0.054 m (ML 0.18 / 0.19)"),
+    ],
+)
+def test_acceptance_biases_at_5_and_10_hz(rate_hz, odometry_hz, duration_s, measured):
+    """Sequential ranges at 5 and 10 Hz: biases within 3 cm, RMSE <= 0.10 m and >= 30 %
+    better than multilateration, on seeds 16 and 17 (held out: the durations were chosen
+    on seeds 0-15). The bias information is the ranges per anchor: 500 here; at 5 Hz for
+    120 s (150 per anchor) the reported 1-sigma is 1.7 cm and the largest error 5.9 cm,
+    also 5.5 cm in the filter's own noise law (docs/rigs.md)."""
+    for seed in (16, 17):
+        run = simulate_rig_run(square_rig(), duration_s=duration_s, range_rate_hz=rate_hz,
+                               odometry_rate_hz=odometry_hz, rng=seed)  # fmt: skip
+        p0 = run.truth_pose([run.log.odometry.t_s[0]])[0]
+        trk = track_anchors(run.log, run.rig, initial_pose=p0)
+        rmse, _ = _rmse(trk, run)
+        tm, xm = multilaterate_latest(run.log, run.rig)
+        ok = np.isfinite(xm[:, 0])
+        rmse_ml = float(np.sqrt(np.mean(np.sum((xm[ok] - run.truth_xy(tm[ok])) ** 2, axis=1))))
+        err = np.abs(trk.bias_m - run.true_bias_m)
+        assert np.all(err <= 0.03), (seed, err, measured)
+        assert np.all(trk.bias_sigma_m <= 0.015), trk.bias_sigma_m  # measured 1.1 cm
+        assert rmse <= 0.10 and rmse <= 0.7 * rmse_ml, (seed, rmse, rmse_ml, measured)
+
+
 def test_acceptance_without_initial_pose(runs):
     """Start from multilateration and a heading bank: converged (< 0.3 m from then on)
     within 5 s; whole-run RMSE still <= 0.10 m."""
