@@ -654,6 +654,11 @@ def _onset_flags_py(
     rise: float,
     quiet: float,
     reverb_ratio: float,
+    n_last: int,
+    guard: float,
+    rise_last: float,
+    spacing: float,
+    k_b: int,
 ) -> int:
     """``changepoint._before_onset_flags``: bit 0 ``ambiguous_first_path``, bit 1
     ``reverb_limited`` (the caller maps them to the flag bits)."""
@@ -662,6 +667,28 @@ def _onset_flags_py(
     lo_far = end - 2 * near
     if lo_far < 0 or end <= lo_near + pre_run:
         return 0
+    # the frames just before each burst's onset over its level before, the smallest over
+    # the bursts (changepoint._last_frames_ratio)
+    ratio = np.full(n_last, np.inf)
+    used = False
+    for k in range(k_b):
+        tk = t0 + k * spacing
+        end_k = int(tk - n_win) // hop
+        last = int(math.floor((tk - guard - n_win) / hop))
+        if end_k - 2 * near < 0 or last - n_last + 1 < 0 or last >= e.shape[0]:
+            continue
+        s = 0.0
+        for i in range(end_k - 2 * near, end_k - near):
+            s += e[i]
+        lvl = s / near
+        if lvl > 0:
+            used = True
+            for j in range(n_last):
+                ratio[j] = min(ratio[j], e[last - n_last + 1 + j] / lvl)
+    top_last = -math.inf
+    if used:
+        for j in range(n_last):
+            top_last = max(top_last, ratio[j])
     far = 0.0
     for i in range(lo_far, lo_near):
         far += e[i]
@@ -674,6 +701,8 @@ def _onset_flags_py(
         top = max(top, acc)
     out = 0
     if far > 0 and top > rise * far:
+        out |= 1
+    if top_last > rise_last:
         out |= 1
     if quiet > 0 and far > reverb_ratio * quiet:
         out |= 2
@@ -709,9 +738,10 @@ def _beeps_py(
     combined (:func:`_combine_py`) and the flags from the band energy before the onset.
 
     ``ipar``: pre, post, u0, width, margin, k_b, sep, min_bursts, n_coarse, n_fine,
-    background, hop, n_win, near, pre_run, lo_off, hi_off; ``fpar``: spacing, f_min,
-    f_joint, h (stage 2's half range), fs, w, taper_s, burst_s, scale, model_sigma,
-    quiet, rise, reverb_ratio, low_snr_db. ``found`` (sorted, ``n_found[0]`` used) holds
+    background, hop, n_win, near, pre_run, lo_off, hi_off, n_last; ``fpar``:
+    spacing, f_min, f_joint, h (stage 2's half range), fs, w, taper_s, burst_s, scale,
+    model_sigma, quiet, rise, reverb_ratio, low_snr_db, scale_raw, f_raw_min, rise_last,
+    guard. ``found`` (sorted, ``n_found[0]`` used) holds
     the onsets found so far; each row appends ``[onset, sigma, snr_db, confidence,
     n_ok, strength, flag bits]`` to ``out`` and the kept bursts' onsets to ``rows``.
 
@@ -721,7 +751,8 @@ def _beeps_py(
     (``qt_dc``, ``cols_dc``: that model's integer-grid bases), the onset refined on them.
 
     Returns the index of the first anchor not done: ``len(anchors)``, or an anchor the
-    caller must do with the reference code (a system was not positive definite).
+    caller must do with the reference code (a system was not positive definite, or the
+    joint edge lies at the search window's late end: the reference re-anchors on it).
     """
     pre, post, u0, width, margin, k_b, sep, min_bursts = (
         ipar[0],
@@ -746,7 +777,8 @@ def _beeps_py(
     spacing, f_min, f_joint, h, fs, w = fpar[0], fpar[1], fpar[2], fpar[3], fpar[4], fpar[5]
     taper_s, burst_s, scale, model_sigma = fpar[6], fpar[7], fpar[8], fpar[9]
     quiet, rise, reverb_ratio, low_snr_db = fpar[10], fpar[11], fpar[12], fpar[13]
-    scale_raw, f_raw_min = fpar[14], fpar[15]
+    scale_raw, f_raw_min, rise_last, guard = fpar[14], fpar[15], fpar[16], fpar[17]
+    n_last = ipar[17]
     n_par_dc = cols_dc.shape[1]
     n_cols_dc = (4 if background else 2) + 2
     raw = np.zeros(width - 1 + 2 * margin)
@@ -844,6 +876,8 @@ def _beeps_py(
         if not any_pos:
             continue
         u = _first_edge_py(joint, 0.1, f_joint, sep)
+        if joint[u] >= f_joint and u >= width - sep:
+            return i  # an edge at the window's late end: the reference re-anchors on it
         if joint[u] < f_joint or not (sep <= u < width - sep):
             continue
         failed = False
@@ -978,7 +1012,10 @@ def _beeps_py(
         for k in range(k_b):
             if clipped[k] and not math.isnan(row[k]):
                 fl |= 16
-        fl |= _onset_flags_py(e, t0, hop, n_win, near, pre_run, rise, quiet, reverb_ratio)
+        fl |= _onset_flags_py(
+            e, t0, hop, n_win, near, pre_run, rise, quiet, reverb_ratio, n_last, guard,
+            rise_last, spacing, k_b,
+        )  # fmt: skip
         nr = n_rows[0]
         for c in range(6):
             out[nr, c] = res[c]
@@ -1010,11 +1047,13 @@ def _all_finite_py(x: np.ndarray) -> bool:
 
 
 def _change_points_py(
-    e: np.ndarray, floor: np.ndarray, gap: int, nb: int, thr_f: float, thr_r: float
+    e: np.ndarray, floor: np.ndarray, gap: int, nb: int, thr_f: float, thr_r: float, w: int
 ) -> np.ndarray:
     """``changepoint._change_points`` (the same arithmetic per frame): frames where ``e``
     first exceeds both ``thr_f`` times the floor and ``thr_r`` times the mean of the
-    ``nb`` frames ending ``gap`` frames earlier."""
+    ``nb`` frames ending ``gap`` frames earlier, and inside each such run the frames ``w``
+    or more into it (or into the step before) exceeding ``thr_r`` times the largest of
+    its first ``w`` frames."""
     n = e.shape[0]
     cs = np.empty(n + 1)
     cs[0] = 0.0
@@ -1025,6 +1064,8 @@ def _change_points_py(
     out = np.empty(n, dtype=np.int64)
     m = 0
     prev = False
+    start = 0
+    level = 0.0
     for i in range(n):
         fl = max(floor[i], 1e-30)
         hi = max(i - gap, 0)
@@ -1036,6 +1077,17 @@ def _change_points_py(
         if above and not prev:
             out[m] = i
             m += 1
+            start = i
+            level = e[i]
+        elif above:
+            if i < start + w:
+                level = max(level, e[i])
+            elif e[i] > thr_r * level:
+                # a second step: a new run start, its level from its own first w frames
+                out[m] = i
+                m += 1
+                start = i
+                level = e[i]
         prev = above
     return out[:m]
 

@@ -460,7 +460,10 @@ def test_compiled_beep_loop_searches_the_reference_window_anchor_by_anchor():
     """One anchor at a time, at offsets spanning the documented search window (onset -
     anchor from -(n_win/2 + lookback) + taper to n_win + hop - taper: -217 ... 139 here):
     the compiled loop finds the beep exactly where the numpy reference does, with the
-    same numbers, and neither finds it just outside (the window's ends measured)."""
+    same numbers, and neither finds it just before the early end. Past the late end
+    (140 ... 173 measured) the edge's rise is still in the window: both re-anchor on it
+    and find the beep (a click or noise peak just before a beep); from 174 its statistic
+    no longer reaches the threshold inside the window."""
     b = Beep()
     t = np.arange(30000) / b.fs
     x = 0.3 * beep_continuous(t - 3000.4 / b.fs, beep=b)
@@ -472,7 +475,8 @@ def test_compiled_beep_loop_searches_the_reference_window_anchor_by_anchor():
           "min_bursts": 3, "quiet": 0.0, "oob": False}  # fmt: skip
     ref_cond = cp._conditioner(x, fs=b.fs, beep=b, condition=True)
     fast_cond = cp._conditioner(x, fs=b.fs, beep=b, condition=True, compiled=True)
-    for off, found in ((-218, False), (-217, True), (0, True), (139, True), (140, False)):
+    offsets = ((-218, False), (-217, True), (0, True), (139, True), (140, True), (173, True))
+    for off, found in (*offsets, (174, False)):
         ref = cp._beep_row(ref_cond, 3000 - off, e, cp._Found(), **kw)
         fast = cp._rows_compiled(fast_cond, np.array([3000 - off]), e, **kw)
         assert (ref is not None) == found == (len(fast) == 1), off
@@ -543,3 +547,98 @@ def test_precursor_level_before_is_the_stretch_just_before_the_near_one():
     e[400 - 30 :] = 10**1.2  # 12 dB up just before the onset
     got = cp._before_onset_flags(e, t0, hop=hop, n_win=n_win, fs=fs, quiet=1.0)
     assert got & flag_bit("ambiguous_first_path")
+
+
+def test_a_beep_after_a_quiet_stretch_needs_only_threshold_db_over_the_floor():
+    """``threshold_db`` (6 dB) decides where the level just before a burst is far below
+    the stretch's floor (noise gated off for 35 ms around each burst, as a phone's noise
+    suppressor does): the 10 dB rise over that quiet level is met at once, and a burst
+    whose band energy is 6-12 dB over the 0.25 s floor starts a change point. At peak
+    0.015 in noise of 0.05 the beep is found with the default (measured 0.24 samples
+    early of 20000.3... within 0.3) and lost with 12 dB (lost up to 0.02, found from
+    0.025 on: measured)."""
+    b = Beep()
+    t = np.arange(60000) / b.fs
+    noise = 0.05 * np.random.default_rng(0).standard_normal(len(t))
+    for k in range(b.n_bursts):
+        p = 20000 + k * b.spacing
+        noise[p - 1000 : p + 600] *= 0.01
+    x = 0.015 * beep_continuous(t - 20000.3 / b.fs, beep=b) + noise
+    arr = cp.detect_changepoint(x, fs=b.fs, beep=b)
+    assert len(arr) == 1 and abs(arr.onset[0] - 20000.3) < 0.3  # measured 0.24 - 0.3
+    assert len(cp.detect_changepoint(x, fs=b.fs, beep=b, threshold_db=12.0)) == 0
+
+
+def _flags_on_both_paths(e_edit):
+    """Flags of one clean beep at 6000.4 on the numpy and the compiled path, with the band
+    energy the flags read replaced by ones edited by ``e_edit(e, t0)``."""
+    b = Beep()
+    t = np.arange(40000) / b.fs
+    x = 0.3 * beep_continuous(t - 6000.4 / b.fs, beep=b)
+    x += 0.01 * np.random.default_rng(0).standard_normal(len(x))
+    n_win, hop, e, _, _ = cp._candidates(
+        x, fs=b.fs, beep=b, win_s=cp.WIN_S, hop_s=cp.HOP_S, threshold_db=6.0, rise_db=10.0
+    )
+    e = np.ones(len(e))
+    e_edit(e, 6000.4 + np.arange(b.n_bursts) * b.spacing, n_win, hop)
+    kw = {"fs": b.fs, "beep": b, "n_win": n_win, "hop": hop, "background": True,
+          "min_bursts": 3, "quiet": 0.0, "oob": False}  # fmt: skip
+    ref = cp._beep_row(
+        cp._conditioner(x, fs=b.fs, beep=b, condition=True), 6000, e, cp._Found(), **kw
+    )
+    fast = cp._rows_compiled(
+        cp._conditioner(x, fs=b.fs, beep=b, condition=True, compiled=True),
+        np.array([6000]), e, **kw,
+    )  # fmt: skip
+    assert ref is not None and len(fast) == 1 and abs(ref[0] - 6000.4) < 0.3
+    return ref[5], fast[0][5]
+
+
+@pytest.mark.parametrize(("rise_db", "flagged"), [(9.8, False), (10.2, True)])
+def test_precursor_run_threshold_is_pre_rise_db_on_both_paths(rise_db, flagged):
+    """The run test's 10 dB on the compiled path as on the numpy one (the kernel gets
+    ``10 ** (PRE_RISE_DB / 10)``): a 30-frame precursor 9.8 dB up before the first burst
+    is not flagged, 10.2 dB is."""
+
+    def edit(e, onsets, n_win, hop):
+        end = int(onsets[0] - n_win) // hop
+        e[end - 30 : end] = 10 ** (rise_db / 10)
+
+    ref, fast = _flags_on_both_paths(edit)
+    bit = flag_bit("ambiguous_first_path")
+    assert bool(ref & bit) == bool(fast & bit) == flagged
+
+
+@pytest.mark.parametrize(("rise_db", "flagged"), [(7.8, False), (8.2, True)])
+def test_last_frames_threshold_is_pre_last_db_in_every_burst_on_both_paths(rise_db, flagged):
+    """The one-by-one test of the frames just before the onset: one frame ``PRE_LAST_DB``
+    (8 dB) up before every burst flags ``ambiguous_first_path`` (7.8 dB does not), on both
+    paths; the same frame before three of the four bursts only (an echo of the burst
+    before) does not."""
+    for n_up in (4, 3):
+
+        def edit(e, onsets, n_win, hop, n_up=n_up):
+            for k, t in enumerate(onsets):
+                last = cp._last_frames(float(t), hop=hop, n_win=n_win, fs=44100.0)[0]
+                if k >= len(onsets) - n_up:
+                    e[last - 2] = 10 ** (rise_db / 10)
+
+        ref, fast = _flags_on_both_paths(edit)
+        bit = flag_bit("ambiguous_first_path")
+        assert bool(ref & bit) == bool(fast & bit) == (flagged and n_up == 4), n_up
+
+
+def test_quiet_level_is_the_tenth_percentile_of_the_stretch_floors():
+    """``reverb_limited`` compares the level before an arrival with the recording's quiet
+    level, the 10th percentile of its 0.25 s floors: a recording quiet (14 dB down) for
+    its first eighth, the beep in the loud rest, is flagged; all loud, it is not."""
+    b = Beep()
+    t = np.arange(int(4.0 * b.fs)) / b.fs
+    x = 0.3 * beep_continuous(t - 2.0, beep=b)
+    for quiet_part, flagged in ((True, True), (False, False)):
+        noise = 0.01 * np.random.default_rng(1).standard_normal(len(t))
+        if quiet_part:
+            noise[: len(t) // 8] *= 0.2
+        arr = cp.detect_changepoint(x + noise, fs=b.fs, beep=b)
+        assert len(arr) == 1
+        assert ("reverb_limited" in arr.flag_names(0)) == flagged
