@@ -113,6 +113,16 @@ def test_range_run_rows_and_warnings():
     assert len(run.rows()) == 1 and run.warnings() == s.warnings() != []
 
 
+def test_range_run_repr_leaves_out_its_rows():
+    """A series' run holds a generator and may hold thousands of rows: not in its repr."""
+    s = R.SeriesRows([_Exchange([_row()])], scheme="beepbeep")
+    run = _run(s, withheld=[_row(9.0)])
+    text = repr(run)
+    assert text.startswith("RangeRun(scheme='beepbeep', series=True")
+    assert "_blocks=" not in text and " _rows=" not in text and "_withheld=" not in text
+    assert "SeriesRows" not in text and "9.0" not in text
+
+
 def test_finish_raises_naming_inputs_count_and_first_row():
     r = _row(3.0, flags=["clipped", "low_snr"])
     r.update(distance_m=None, sigma_m=None, flags=["clipped", "low_snr", "withheld"])

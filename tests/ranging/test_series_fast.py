@@ -207,6 +207,11 @@ def test_default_exchange_and_block():
     assert S.default_exchange_s(b, 4) == pytest.approx(3 * (b.duration_s + 0.5))
     assert S._block_s(None, fs=44100.0, n_channels=2) == (S.DEFAULT_BLOCK_SAMPLES // 2) / 44100.0
     assert S._block_s(3.0, fs=44100.0, n_channels=2) == 3.0
+    # the documented memory bound: 2^21 samples, 16 MB of float64 (23.8 s of a stereo
+    # 44.1 kHz recording, 10.9 s of a mono 192 kHz one)
+    assert S._block_s(None, fs=44100.0, n_channels=2) == pytest.approx(23.78, abs=0.005)
+    assert S._block_s(None, fs=192000.0, n_channels=1) == pytest.approx(10.92, abs=0.005)
+    assert S.DEFAULT_BLOCK_SAMPLES * 8 == 16 * 2**20
     with pytest.raises(InvalidParameterError):
         S._block_s(0.0, fs=44100.0, n_channels=2)
 
