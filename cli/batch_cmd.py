@@ -173,7 +173,7 @@ def batch_cmd(
             "detector": detector,
             "temp_c": temp_c,
             "speed_m_s": speed,
-            "self_distance_m": sd[0] if len(sd) == 1 else sd,
+            "self_distance_m": _self_distance(sd),
             "clock_ppm": clock_ppm,
         }
     else:
@@ -284,3 +284,13 @@ def _probe_and_calibration(template, calibration, scheme, sd, kw, beepbeep, ultr
             beepbeep["calibration"] = cal
         else:
             ultra[scheme]["calibration"] = cal
+
+
+def _self_distance(sd: list[float] | None) -> float | list[float]:
+    """--self-distance as the two-way option; not given: the library's default
+    (:class:`rangekit.ranging.config.TwoWaySetup`), recorded as such in the results."""
+    from rangekit.ranging.config import TwoWaySetup
+
+    if sd is None:
+        return TwoWaySetup().self_distance_m
+    return sd[0] if len(sd) == 1 else sd

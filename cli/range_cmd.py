@@ -135,7 +135,8 @@ def _two_way(self_distance, clock_ppm, detector, clock_rate, cal, probe, kw) -> 
     if probe is not None:
         refuse_beep_options(kw)
     out = {"beep": make_beep(kw), "detector": detector}
-    out["setup"] = TwoWaySetup(self_distance_m=as_self_distance(sd), clock_ppm=clock_ppm)
+    sd_kw = {} if sd is None else {"self_distance_m": as_self_distance(sd)}  # else the default
+    out["setup"] = TwoWaySetup(**sd_kw, clock_ppm=clock_ppm)
     mode = None if clock_rate is None else clock_rate.strip().lower()
     if mode not in (None, "off"):
         ppm = (

@@ -221,6 +221,10 @@ def describe(scheme, detector, template, calibration, self_distance, temp_c, spe
         what = "coded burst (--code)"
     air = f"speed of sound {speed:g} m/s" if speed is not None else f"temperature {temp_c:g} C"
     cal = f", calibration '{calibration}'" if calibration is not None else ""
+    if self_distance is None:  # the library's default (TwoWaySetup)
+        from rangekit.ranging.config import TwoWaySetup
+
+        self_distance = f"{TwoWaySetup().self_distance_m:g}"
     sd = f", self-distance {self_distance}" if scheme == "beepbeep" else ""
     detail(f"rangekit: range: scheme {scheme}, {what}, {air}{sd}{cal}")
 
@@ -234,8 +238,8 @@ def refuse_ultrasonic_options(kw: dict) -> None:
 
 
 def refuse_self_distance(sd) -> None:
-    """Usage error for --self-distance given with --calibration."""
-    if any(v != 0 for v in sd):
+    """Usage error for --self-distance given with --calibration (None: not given)."""
+    if sd is not None and any(v != 0 for v in sd):
         raise click.UsageError(
             "give --self-distance or --calibration, not both: the calibration's offset "
             "already holds the speaker-to-microphone distances"
