@@ -24,7 +24,12 @@ Localisation and tracking (:mod:`rangekit.localize`)
 Input and output (:mod:`rangekit.io`)
     :func:`read_audio`, :func:`write_audio`, :func:`load_devices`
 Simulation (:mod:`rangekit.sim`)
-    :func:`render_beepbeep`, :func:`pair_devices`, :class:`Device`, :class:`ShoeboxRoom`
+    :func:`render_beepbeep`, :func:`pair_devices`, :class:`Device`, :class:`ShoeboxRoom`;
+    the scenes of ``rangekit synth``: :func:`synth_beepbeep`, :func:`synth_oneway`,
+    :func:`synth_echo`, :class:`Synthesis`
+Figures (:mod:`rangekit.plot.jobs`, matplotlib)
+    :func:`spectrogram_figure`, :func:`matched_figure`, :func:`ranges_figure`,
+    :func:`track_figure`, :func:`cdf_figure`
 Results and errors
     :class:`Arrivals`, :class:`Range`, :class:`RangeResult`, :class:`RangekitError`
 
@@ -117,6 +122,17 @@ SECTIONS: dict[str, dict[str, tuple[str, str]]] = {
         "pair_devices": ("rangekit.sim", "pair_devices"),
         "Device": ("rangekit.sim", "Device"),
         "ShoeboxRoom": ("rangekit.sim", "ShoeboxRoom"),
+        "synth_beepbeep": ("rangekit.sim.scenarios", "synth_beepbeep"),
+        "synth_oneway": ("rangekit.sim.scenarios", "synth_oneway"),
+        "synth_echo": ("rangekit.sim.scenarios", "synth_echo"),
+        "Synthesis": ("rangekit.sim.scenarios", "Synthesis"),
+    },
+    "Figures": {
+        "spectrogram_figure": ("rangekit.plot.jobs", "spectrogram_figure"),
+        "matched_figure": ("rangekit.plot.jobs", "matched_figure"),
+        "ranges_figure": ("rangekit.plot.jobs", "ranges_figure"),
+        "track_figure": ("rangekit.plot.jobs", "track_figure"),
+        "cdf_figure": ("rangekit.plot.jobs", "cdf_figure"),
     },
     "Results and errors": {
         "Arrivals": ("rangekit.types", "Arrivals"),
