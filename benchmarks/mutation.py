@@ -78,6 +78,7 @@ TESTS: dict[str, tuple[str, ...]] = {
     "rangekit/detect/matched.py": (
         "tests/detect/test_matched_fast.py",
         "tests/detect/test_matched.py",
+        "tests/detect/test_mutation_matched.py",
     ),
     "rangekit/detect/xcorr.py": (
         "tests/detect/test_xcorr_mutation.py",

@@ -1,0 +1,285 @@
+"""``rangekit.detect.matched``'s helpers that its detection tests reach only through a
+whole detection (issue 21, the mutation check): the Welch noise spectra, the GCC weights of
+Knapp & Carter (1976, Table I), the zero-phase taps, the noise scales, the sub-sample peak
+and the fits' sigma and flags. Each test pins the rule the code states, on closed forms
+or on scipy's implementation of the same thing. About a second.
+"""
+
+from __future__ import annotations
+
+import math
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+from scipy.signal import welch
+
+from rangekit.detect import matched as M
+from rangekit.errors import InvalidParameterError
+
+FS = 1000.0
+
+
+# ---------------------------------------------------------------- welch_spectra
+
+
+def test_welch_mean_is_scipys_welch():
+    """Hann, no overlap, one-sided density: the mean PSD is scipy's Welch estimate."""
+    x = np.random.default_rng(0).standard_normal(64 * 128)
+    s = M.welch_spectra(x, fs=FS, nperseg=128)
+    f, p = welch(x, fs=FS, window="hann", nperseg=128, noverlap=0, detrend=False)
+    np.testing.assert_allclose(s.f_hz, f)
+    np.testing.assert_allclose(s.mean, p, rtol=1e-10)
+    assert s.nperseg == 128
+    # Parseval: sum(psd) * fs / nperseg is the mean power (1 for unit white noise)
+    assert np.sum(s.mean) * FS / 128 == pytest.approx(np.mean(x**2), rel=0.03)
+
+
+def test_welch_noise_is_the_noise_level_under_rare_arrivals():
+    rng = np.random.default_rng(1)
+    sigma = 0.5
+    x = sigma * rng.standard_normal(256 * 128)
+    t = np.arange(128) / FS
+    for k in range(0, 256, 4):  # a 250 Hz tone in a quarter of the segments
+        x[k * 128 : (k + 1) * 128] += 5.0 * np.sin(2 * np.pi * 250.0 * t)
+    s = M.welch_spectra(x, fs=FS, nperseg=128)
+    level = 2 * sigma**2 / FS  # one-sided white PSD
+    interior = slice(2, -2)
+    assert np.median(s.noise[interior]) == pytest.approx(level, rel=0.1)
+    i250 = int(np.argmin(np.abs(s.f_hz - 250.0)))
+    assert s.noise[i250] < 1.6 * level  # the tone does not raise the noise (measured ~1.1x)
+    assert s.mean[i250] > 100 * level
+    # q and its exponential correction: the same level from another percentile
+    s40 = M.welch_spectra(x, fs=FS, nperseg=128, q=40.0)
+    assert np.median(s40.noise[interior]) == pytest.approx(level, rel=0.1)
+
+
+def test_welch_leaves_digital_silence_out():
+    rng = np.random.default_rng(2)
+    x = rng.standard_normal(40 * 128)
+    s = M.welch_spectra(x, fs=FS, nperseg=128)
+    padded = np.concatenate([np.zeros(30 * 128), x, np.full(20 * 128, 1e-12)])
+    p = M.welch_spectra(padded, fs=FS, nperseg=128)
+    np.testing.assert_allclose(p.noise, s.noise, rtol=1e-12)
+    np.testing.assert_allclose(p.mean, s.mean, rtol=1e-12)
+    # rel_zero is relative: a quiet but live segment (-100 dB) counts
+    quiet = np.concatenate([1e-5 * rng.standard_normal(200 * 128), x])
+    assert np.median(M.welch_spectra(quiet, fs=FS, nperseg=128).noise) < 0.01 * np.median(s.noise)
+
+
+def test_welch_segment_length_and_counts():
+    rng = np.random.default_rng(3)
+    x = rng.standard_normal(20000)
+    assert M.welch_spectra(x, fs=FS, nperseg=1024).nperseg == 512  # 39 >= 32 segments
+    assert M.welch_spectra(x, fs=FS, nperseg=1024, min_segments=8).nperseg == 1024
+    assert M.welch_spectra(rng.standard_normal(2000), fs=FS, nperseg=1024).nperseg == 128
+    few = M.welch_spectra(rng.standard_normal(7 * 128), fs=FS, nperseg=128)
+    assert not few.noise.any() and not few.mean.any() and len(few.f_hz) == 65
+    ok = M.welch_spectra(rng.standard_normal(8 * 128), fs=FS, nperseg=128, min_segments=8)
+    assert ok.noise.all()
+    seven_live = np.concatenate([np.zeros(10 * 128), rng.standard_normal(7 * 128)])
+    assert not M.welch_spectra(seven_live, fs=FS, nperseg=128).noise.any()
+    assert not M.welch_spectra(np.zeros(40 * 128), fs=FS, nperseg=128).mean.any()
+    # a long recording is represented by max_segments segments spread over all of it
+    y = np.concatenate([rng.standard_normal(300 * 128), 3 * rng.standard_normal(300 * 128)])
+    s = M.welch_spectra(y, fs=FS, nperseg=128, max_segments=20)
+    assert np.sum(s.mean) * FS / 128 == pytest.approx(5.0, rel=0.2)  # both halves: (1 + 9) / 2
+    odd = M.welch_spectra(rng.standard_normal(40 * 129), fs=FS, nperseg=129)
+    assert np.sum(odd.mean) * FS / 129 == pytest.approx(1.0, rel=0.1)
+    with pytest.raises(InvalidParameterError):
+        M.welch_spectra(x, fs=FS, nperseg=7)
+
+
+def test_common_spectra():
+    rng = np.random.default_rng(4)
+    a = M.welch_spectra(rng.standard_normal(8000), fs=FS, nperseg=128)
+    b = M.welch_spectra(2 * rng.standard_normal(8000), fs=FS, nperseg=128)
+    c = M.common_spectra([a, b])
+    np.testing.assert_array_equal(c.noise, np.maximum(a.noise, b.noise))
+    np.testing.assert_array_equal(c.mean, np.maximum(a.mean, b.mean))
+    assert c.nperseg == 128 and c.f_hz is a.f_hz
+    assert M.common_spectra([a]).noise.tolist() == a.noise.tolist()
+    with pytest.raises(InvalidParameterError, match="at least one"):
+        M.common_spectra([])
+    other = M.welch_spectra(rng.standard_normal(8000), fs=2 * FS, nperseg=128)
+    with pytest.raises(InvalidParameterError, match="share their frequency grid"):
+        M.common_spectra([a, other])
+    with pytest.raises(InvalidParameterError, match="share their frequency grid"):
+        M.common_spectra(
+            [a, M.welch_spectra(rng.standard_normal(8000), fs=FS, nperseg=256, min_segments=8)]
+        )
+
+
+# ---------------------------------------------------------------- weighting_response
+
+
+def _spectra(noise, mean=None):
+    f = np.linspace(0.0, 500.0, len(noise))
+    mean = noise if mean is None else mean
+    return M.Spectra(f, np.asarray(noise, float), np.asarray(mean, float), 2 * (len(noise) - 1))
+
+
+def test_weightings_follow_knapp_carter():
+    n = 65
+    f = np.linspace(0.0, 500.0, n)
+    noise = 1.0 + (f / 100.0) ** 2  # coloured, smooth
+    mean = 2.0 * noise
+    S2 = np.exp(-(((f - 200.0) / 80.0) ** 2))
+    sp = _spectra(noise, mean)
+    band = (100.0, 300.0)
+    inb = (f >= 100.0) & (f <= 300.0)
+    assert M.weighting_response("none", sp, template_psd=S2, band_hz=band) is None
+    got = {k: M.weighting_response(k, sp, template_psd=S2, band_hz=band)
+           for k in ("prewhiten", "phat", "scot", "ml")}  # fmt: skip
+    for W in got.values():
+        assert np.median(W[inb]) == pytest.approx(1.0) and np.all(W > 0)
+    s2r = S2 + M.NOISE_WEIGHT_REG * S2.max()
+    phat = 1.0 / s2r
+    np.testing.assert_allclose(got["phat"], phat / np.median(phat[inb]), rtol=1e-12)
+    # ml is the square of prewhiten (1 / N against 1 / sqrt(N)), up to the normalisation
+    r = got["ml"] / got["prewhiten"] ** 2
+    np.testing.assert_allclose(r, r[0], rtol=1e-9)
+    # scot: 1 / sqrt(G_xx |S|^2), G_xx the mean PSD: against prewhiten (noise, no |S|),
+    # the ratio is 1 / |S| (G_xx = 2 N here)
+    r = got["scot"] / got["prewhiten"] * np.sqrt(s2r)
+    np.testing.assert_allclose(r, r[0], rtol=1e-9)
+    # smooth noise: the weight is 1 / N within the smoothing and regularisation
+    ml = 1.0 / (noise + M.NOISE_WEIGHT_REG * np.median(noise[inb]))
+    np.testing.assert_allclose(got["ml"][5:-5], (ml / np.median(ml[inb]))[5:-5], rtol=0.02)
+    with pytest.raises(InvalidParameterError, match="weighting='gcc' must be one of"):
+        M.weighting_response("gcc", sp, template_psd=S2, band_hz=band)
+
+
+def test_weights_are_regularised_and_smoothed():
+    n = 65
+    noise = np.ones(n)
+    noise[30] = 1e-9  # one bin with no noise: not weighted beyond +20 dB
+    W = M.weighting_response("ml", _spectra(noise), template_psd=np.ones(n),
+                             band_hz=(0.0, 500.0))  # fmt: skip
+    assert W.max() <= 1.0 / M.NOISE_WEIGHT_REG and W.max() > 2.0
+    # smoothed over 5 bins: bins 28-32 feel the gap, 27 and 33 do not
+    assert np.all(W[28:33] > 1.5) and W[27] == pytest.approx(1.0) and W[33] == pytest.approx(1.0)
+    assert W[28] == pytest.approx(W[32]) and W[29] == pytest.approx(W[31])
+    # digital silence: nothing to weight by
+    assert M.weighting_response("ml", _spectra(np.zeros(n)), template_psd=np.ones(n),
+                                band_hz=(0.0, 500.0)) is None  # fmt: skip
+    assert M.weighting_response("scot", _spectra(np.ones(n), np.zeros(n)),
+                                template_psd=np.ones(n), band_hz=(0.0, 500.0)) is None  # fmt: skip
+
+
+def test_weights_interpolate_a_finer_template_grid_and_fall_back_to_all_bins():
+    n = 33
+    f = np.linspace(0.0, 500.0, n)
+    sp = _spectra(1.0 + f / 100.0)
+    fine_f = np.linspace(0.0, 500.0, 65)
+    S2_fine = 1.0 + fine_f / 50.0
+    W = M.weighting_response("phat", sp, template_psd=S2_fine, band_hz=(0.0, 500.0))
+    s2 = 1.0 + f / 50.0
+    s2 = s2 + M.NOISE_WEIGHT_REG * s2.max()
+    np.testing.assert_allclose(W, (1 / s2) / np.median(1 / s2), rtol=1e-12)
+    # a band outside the grid: the median over every bin is 1
+    W = M.weighting_response("ml", sp, template_psd=np.ones(n), band_hz=(600.0, 700.0))
+    assert np.median(W) == pytest.approx(1.0)
+    # the band's median sets the level: normalised over [0, 100] Hz only
+    W = M.weighting_response("ml", sp, template_psd=np.ones(n), band_hz=(0.0, 100.0))
+    assert np.median(W[f <= 100.0]) == pytest.approx(1.0) and W[-1] < 0.5
+
+
+# ---------------------------------------------------------------- zero_phase_taps
+
+
+def test_zero_phase_taps():
+    h = M.zero_phase_taps(np.ones(65), 128)
+    assert len(h) == 127 and h[63] == pytest.approx(1.0) and np.sum(np.abs(h)) == pytest.approx(1.0)
+    f = np.linspace(0.0, 1.0, 65)
+    W = 1.0 + 0.5 * np.cos(np.pi * f)  # smooth: reproduced by the windowed taps
+    h = M.zero_phase_taps(W, 128)
+    np.testing.assert_allclose(h, h[::-1], rtol=0, atol=1e-15)
+    resp = np.real(np.fft.rfft(np.roll(np.pad(h, (0, 1)), -63), 128))
+    np.testing.assert_allclose(resp, W, rtol=0.02)
+    assert h.flags.c_contiguous
+
+
+# ---------------------------------------------------------------- noise scales, peaks
+
+
+def test_noise_level_is_the_rayleigh_scale():
+    env = np.random.default_rng(5).rayleigh(0.3, 20000)
+    assert M.noise_level(env) == pytest.approx(0.3, rel=0.03)
+    assert M.noise_level(np.zeros(0)) == 0.0
+    assert M._RAYLEIGH_MEDIAN == pytest.approx(np.median(np.random.default_rng(6).rayleigh(
+        1.0, 200000)), rel=0.01)  # fmt: skip
+
+
+def test_interp_peak_edges_and_flat_tops():
+    n = np.arange(20.0)
+    env = np.exp(-0.5 * ((n - 10.2) / 3.0) ** 2)
+    d, h = M.interp_peak(env, 10)
+    assert d == pytest.approx(0.2, abs=1e-9) and h == pytest.approx(1.0, rel=1e-9)
+    d, h = M.interp_peak(env, 11)  # not the maximum: the vertex is clipped to half a sample
+    assert d == -0.5
+    assert M.interp_peak(env, 0) == (0.0, float(env[0]))
+    assert M.interp_peak(env, 19) == (0.0, float(env[19]))
+    flat = np.array([1.0, 2.0, 2.0, 2.0, 1.0])
+    assert M.interp_peak(flat, 2) == (0.0, 2.0)  # no curvature
+    assert M.interp_peak(np.array([0.0, 2.0, 1.0]), 1) == (0.0, 2.0)  # log of zero
+
+
+def test_median_and_sample_noise():
+    rng = np.random.default_rng(7)
+    for n in (1, 2, 5, 10, 101):
+        v = rng.normal(size=n)
+        assert M._median(v) == np.median(v)
+    x = 0.2 * rng.standard_normal(4000)
+    assert M._sample_noise(x) == pytest.approx(0.2, rel=0.05)
+    y = x.copy()
+    y[::100] = 50.0  # outliers beyond 5 MAD-deviations are left out
+    assert M._sample_noise(y) == pytest.approx(M._sample_noise(np.delete(x, np.s_[::100])),
+                                               rel=0.02)  # fmt: skip
+    assert math.isnan(M._sample_noise(x[: M.NOISE_MIN_PRE - 1]))
+    assert not math.isnan(M._sample_noise(x[: M.NOISE_MIN_PRE]))
+    assert math.isnan(M._sample_noise(np.zeros(4000)))
+
+
+def test_fit_sigma_adds_only_misfit_beyond_three_sigma():
+    f = SimpleNamespace(sigma=0.1, misfit=0.04, misfit_z=3.0, resolution=10.0)
+    assert M._fit_sigma(f, 1.0) == 0.1
+    f.misfit_z = 6.0  # half the misfit counts
+    assert M._fit_sigma(f, 1.0) == pytest.approx(math.sqrt(0.01 + 0.02 * 100.0))
+    f.misfit = -1.0
+    assert M._fit_sigma(f, 1.0) == 0.1
+
+
+def test_fit_flags():
+    base = {"misfit": 0.0, "misfit_z": 0.0, "resolution": 10.0, "first": 0}
+    f = SimpleNamespace(onsets=np.array([100.0, 105.0]), amplitudes=np.array([1.0, 0.5]), **base)
+    assert M._fit_flags(f) == 0
+    f.amplitudes = np.array([1.0, 1.5])  # a stronger path within one resolution
+    assert M._fit_flags(f) == M.flag_bit("ambiguous_first_path")
+    f.onsets = np.array([100.0, 110.0])  # exactly one resolution later: still ambiguous
+    assert M._fit_flags(f) == M.flag_bit("ambiguous_first_path")
+    f.onsets = np.array([100.0, 110.5])
+    assert M._fit_flags(f) == 0
+    f.misfit, f.misfit_z = 0.06, 5.5
+    assert M._fit_flags(f) == M.flag_bit("poor_match")
+    f.misfit_z = 4.0  # a large misfit the noise explains is not a poor match
+    assert M._fit_flags(f) == 0
+    f.misfit, f.misfit_z = 0.05, 9.0
+    assert M._fit_flags(f) == 0
+
+
+def test_earlier_candidate():
+    env = np.full(400, 0.1)
+    env[300] = 10.0  # the first path
+    kw = {"lo": 0, "first": 300.0, "noise": 0.1, "reach": 20, "k": 4.0, "rel": 0.1}
+    assert not M._earlier_candidate(env, **kw)
+    env[100] = 1.5  # a local maximum above 4 noise and 0.1 of the first path
+    assert M._earlier_candidate(env, **kw)
+    assert not M._earlier_candidate(env, **{**kw, "rel": 0.2})
+    assert not M._earlier_candidate(env, **{**kw, "k": 20.0})
+    assert not M._earlier_candidate(env, **{**kw, "lo": 101})
+    env[100] = 0.1
+    env[285] = 1.5  # within the template's reach of the first path: its own side lobe
+    assert not M._earlier_candidate(env, **kw)
+    assert M._earlier_candidate(env, **{**kw, "reach": 10})
+    assert not M._earlier_candidate(env, **{**kw, "first": 500.0})
