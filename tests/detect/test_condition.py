@@ -92,6 +92,14 @@ def test_low_pass_high_pass_and_all_pass():
     assert np.max(_response(h, np.linspace(0.0, 12000.0, 50))) < 1.5e-3
 
 
+def test_upper_transition_reaching_nyquist_exactly_makes_a_high_pass():
+    """'hi at or above Nyquist minus the transition makes a high-pass': Nyquist passes."""
+    h = C.bandpass_taps(FS, 17050.0, 21050.0, transition_hz=1000.0)  # 21050 + 1000 = Nyquist
+    assert _response(h, np.array([21050.0, FS / 2])) == pytest.approx(1.0, abs=2e-3)
+    h = C.bandpass_taps(FS, 17050.0, 21049.0, transition_hz=1000.0)  # 1 Hz short: band-pass
+    assert _response(h, np.array([FS / 2]))[0] < 2e-3
+
+
 def test_lower_transition_shrinks_to_reach_zero_hz_only():
     """lo below the transition width: the lower transition becomes lo (0 Hz is stopped)."""
     h = C.bandpass_taps(FS, 400.0, 6000.0, transition_hz=1000.0)
@@ -113,7 +121,7 @@ def test_band_must_be_ordered_and_non_negative(lo, hi):
         C.bandpass_taps(FS, lo, hi)
 
 
-@pytest.mark.parametrize("atten", [10.0, 21.0, 30.0, 50.0, 60.0, 80.0])
+@pytest.mark.parametrize("atten", [10.0, 21.0, 21.5, 30.0, 50.0, 50.5, 60.0, 80.0])
 def test_kaiser_beta_equals_scipy(atten):
     assert C._kaiser_beta(atten) == pytest.approx(kaiser_beta(atten), rel=1e-12, abs=1e-15)
 

@@ -233,6 +233,16 @@ def test_rows_turn_nan_into_none():
     assert list(ec) == list(S.SERIES_FIELDS["echo"]) and ec["t_s"] == 0.28
 
 
+def test_series_items_are_frozen():
+    import dataclasses
+
+    e = S.ExchangeRanges(0, 1.0, ())
+    w = S.WindowRanges(0, 0.0, ())
+    for obj, attr in ((e, "t_s"), (w, "window")):
+        with pytest.raises(dataclasses.FrozenInstanceError):
+            setattr(obj, attr, 5)
+
+
 def test_read_block_integer_pcm_exact_in_float32(tmp_path):
     x = np.random.default_rng(9).uniform(-0.9, 0.9, (1000, 2))
     for sub, dtype in (("PCM_16", np.float32), ("PCM_24", np.float32), ("FLOAT", np.float64)):
