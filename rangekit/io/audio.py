@@ -208,6 +208,30 @@ def _readable(path: str | os.PathLike) -> Path:
 
 #: Subtypes whose samples float32 holds exactly (integers of up to 24 bits, 32-bit floats).
 _EXACT_IN_FLOAT32 = frozenset({"PCM_S8", "PCM_U8", "PCM_16", "PCM_24", "FLOAT", "ALAW", "ULAW"})
+#: Integer subtypes :func:`read_audio` decodes as integers and scales to float32 itself:
+#: (integer dtype libsndfile reads them as, the scale to full scale 1). libsndfile's own
+#: float conversion gives the same values (tested) at twice the CPU (10 min of 16-bit
+#: stereo: 0.21-0.23 s against 0.10 s, measured 2026-12-02).
+_INT_AS_FLOAT32 = {"PCM_16": ("int16", 2.0**-15), "PCM_24": ("int32", 2.0**-31)}
+#: Frames per block of that conversion (the integer buffer stays small).
+_INT_BLOCK_FRAMES = 1 << 18
+
+
+def _read_int_float32(f, subtype: str) -> np.ndarray:
+    """The rest of open file ``f`` (16- or 24-bit PCM) as float32, (frames, channels):
+    read block by block as integers into one buffer and scaled into the output."""
+    idt, scale = _INT_AS_FLOAT32[subtype]
+    n, c = f.frames - f.tell(), f.channels
+    out = np.empty((n, c), dtype=np.float32)
+    buf = np.empty((min(n, _INT_BLOCK_FRAMES), c), dtype=idt)
+    i = 0
+    while i < n:
+        k = f.read(min(len(buf), n - i), dtype=idt, always_2d=True, out=buf[: n - i])
+        if len(k) == 0:
+            break
+        np.multiply(k, np.float32(scale), out=out[i : i + len(k)], dtype=np.float32)
+        i += len(k)
+    return out[:i]
 
 
 def read_audio(path: str | os.PathLike, *, dtype: str = "auto") -> tuple[np.ndarray, float]:
@@ -239,7 +263,10 @@ def read_audio(path: str | os.PathLike, *, dtype: str = "auto") -> tuple[np.ndar
             subtype = f.subtype
             if dtype == "auto":
                 dtype = "float32" if subtype in _EXACT_IN_FLOAT32 else "float64"
-            x = f.read(dtype=dtype, always_2d=True)
+            if dtype == "float32" and subtype in _INT_AS_FLOAT32 and f.seekable():
+                x = _read_int_float32(f, subtype)
+            else:
+                x = f.read(dtype=dtype, always_2d=True)
             fs = f.samplerate
     except RangekitError:
         raise
