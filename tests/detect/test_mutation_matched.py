@@ -311,3 +311,36 @@ def test_earlier_candidate():
     assert not M._earlier_candidate(env, **kw)
     assert M._earlier_candidate(env, **{**kw, "reach": 10})
     assert not M._earlier_candidate(env, **{**kw, "first": 500.0})
+
+
+# ---------------------------------------------------------------- MatchedFilter edges
+
+
+@pytest.mark.xfail(
+    strict=True,
+    raises=ValueError,
+    reason="found by the mutation check (issue 21): with decimation 1 the envelope "
+    "multiplies an rfft's n/2 + 1 bins by the n-bin band (shapes (1, 4097) and (8192,))",
+)
+def test_broadband_template_is_not_decimated():
+    """A template whose band needs the whole spectrum: decimation 1, the envelope is the
+    magnitude of the analytic correlation at every lag."""
+    rng = np.random.default_rng(8)
+    h = rng.standard_normal(64)
+    mf = M.MatchedFilter(h, block=1024)
+    assert mf.decimation == 1
+    x = rng.standard_normal(5000)
+    np.testing.assert_allclose(mf.envelope(x), np.abs(mf.correlate(x)), rtol=1e-9, atol=1e-9)
+
+
+def test_spans_at_both_ends_equal_the_whole_correlation():
+    """Spans reaching past either end of the recording are zero-padded on that side only."""
+    rng = np.random.default_rng(9)
+    h = M.coded_template(fs=192000.0)
+    mf = M.MatchedFilter(h, block=1024)
+    x = rng.standard_normal(6000)
+    whole = mf.correlate(x)
+    n = len(x)
+    spans = np.array([[0, 300], [n - 300, n], [2000, 2600]])
+    for (a, b), got in zip(spans, mf.correlate_spans(x, spans), strict=True):
+        np.testing.assert_allclose(got, whole[a:b], rtol=1e-9, atol=1e-9 * np.abs(whole).max())
