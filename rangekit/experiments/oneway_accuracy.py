@@ -432,6 +432,7 @@ def _q_row(trial, r, q, model, snr_db, reflection_s, true_m, crb_m) -> dict:
         "snr_out_db": r.snr_db,
         "crb_m": crb_m,
         "flags": r.flags,
+        "sigma_transducer_m": r.sigma_transducer_m,
         "missed": not math.isfinite(err),
     }
 
@@ -444,7 +445,10 @@ def summarize_q(rows: Sequence[dict], *, gross_m: float = 0.02) -> dict:
     gone astray), ``gross_unflagged`` those without any flag. ``crb_rms_m`` is the
     known-transducer bound over the same rows, ``coverage_2sigma`` the fraction of all
     detections with ``|error| <= 2 sigma_m``; ``flag_rates`` the fraction of detections
-    carrying each flag.
+    carrying each flag. ``wrong_unflagged`` counts the gross errors that are unflagged and
+    beyond 2 sigma (confidently wrong), ``order_rate`` the fraction of detections whose
+    sigma holds the transducer model-order term (:func:`rangekit.detect.fitted.
+    order_terms`), ``median_m`` the median error of all detections.
     """
     if not rows:
         raise InvalidParameterError("no rows to summarize")
@@ -455,6 +459,7 @@ def summarize_q(rows: Sequence[dict], *, gross_m: float = 0.02) -> dict:
     a = np.where(found, np.abs(err), np.inf)
     inl = found & (a <= gross_m)
     flagged = np.array([bool(r["flags"]) for r in rows])
+    order = np.array([r.get("sigma_transducer_m", 0.0) > 0 for r in rows])
     names = sorted({f for r in rows for f in r["flags"]})
     n_found = max(int(found.sum()), 1)
     return {
@@ -462,6 +467,9 @@ def summarize_q(rows: Sequence[dict], *, gross_m: float = 0.02) -> dict:
         "misses": int((~found).sum()),
         "gross": int((found & ~inl).sum()),
         "gross_unflagged": int((found & ~inl & ~flagged).sum()),
+        "wrong_unflagged": int((found & ~inl & ~flagged & (a > 2.0 * sig)).sum()),
+        "order_rate": float(np.mean(order[found])) if found.any() else 0.0,
+        "median_m": float(np.median(err[found])) if found.any() else math.nan,
         "rms_m": float(np.sqrt(np.mean(err[inl] ** 2))) if inl.any() else math.nan,
         "bias_m": float(np.mean(err[inl])) if inl.any() else math.nan,
         "bias_se_m": float(np.std(err[inl]) / math.sqrt(inl.sum())) if inl.sum() > 1 else math.nan,
@@ -665,17 +673,19 @@ def run_room_trials(
 
 def _markdown(table: list[dict], *, at_q: float) -> str:
     lines = [
-        "| SNR dB | Q | RMS mm | bias mm | known-Q CRB mm | sigma mm | within 2 sigma "
-        "| gross (unflagged) | flags |",
-        "|---|---|---|---|---|---|---|---|---|",
+        "| SNR dB | Q | RMS mm | bias mm | median mm | known-Q CRB mm | sigma mm "
+        "| within 2 sigma | gross (unflagged, of them beyond 2 sigma) | order term | flags |",
+        "|---|---|---|---|---|---|---|---|---|---|---|",
     ]
     for r in table:
         fl = ", ".join(f"{k} {100 * v:.0f} %" for k, v in r["flag_rates"].items() if v > 0)
         lines.append(
             f"| {r['snr_db']:g} | {r['q']:g} | {1e3 * r['rms_m']:.2f} | "
-            f"{1e3 * r['bias_m']:+.2f} | {1e3 * r['crb_rms_m']:.2f} | "
-            f"{1e3 * r['sigma_rms_m']:.2f} | {100 * r['coverage_2sigma']:.1f} % | "
-            f"{r['gross']}/{r['n']} ({r['gross_unflagged']}) | {fl or '-'} |"
+            f"{1e3 * r['bias_m']:+.2f} | {1e3 * r['median_m']:+.2f} | "
+            f"{1e3 * r['crb_rms_m']:.2f} | {1e3 * r['sigma_rms_m']:.2f} | "
+            f"{100 * r['coverage_2sigma']:.1f} % | {r['gross']}/{r['n']} "
+            f"({r['gross_unflagged']}, {r['wrong_unflagged']}) | "
+            f"{100 * r['order_rate']:.0f} % | {fl or '-'} |"
         )
     for snr in sorted({r["snr_db"] for r in table}, reverse=True):
         sub = {r["q"]: r for r in table if r["snr_db"] == snr}

@@ -56,6 +56,11 @@ class ToF:
     flags : tuple of str
         The arrival's flags (:data:`rangekit.types.ARRIVAL_FLAGS`: ``low_snr``,
         ``poor_match``, ``ambiguous_first_path``); empty when none or nothing detected.
+    sigma_transducer_m : float
+        The part of ``sigma_m`` (included in it) that is the transducers' own delay,
+        the same for every range through the same Tx and receiver, so that a one-point
+        calibration of the link absorbs it (``Arrivals.sigma_transducer``; the model-order
+        term of :func:`rangekit.detect.fitted.order_terms`); 0 when none.
     """
 
     window: int
@@ -66,6 +71,7 @@ class ToF:
     snr_db: float
     arrival_s: float
     flags: tuple[str, ...] = ()
+    sigma_transducer_m: float = 0.0
 
     def as_dict(self) -> dict:
         """Plain-JSON form; NaN becomes None (null)."""
@@ -176,7 +182,12 @@ def _ranges(
                 )
             )
     else:
-        from rangekit.detect.fitted import check_shapes, fit_channel
+        from rangekit.detect.fitted import (
+            check_shapes,
+            fit_channel,
+            order_terms,
+            with_order_terms,
+        )
 
         cf = [
             fit_channel(
@@ -198,6 +209,9 @@ def _ranges(
         # a receiver that disagrees with the others is refitted at their shape, and
         # without a consensus the resonator times that transmitter's arrivals.
         forces = check_shapes(cf) if pool else [{} for _ in cf]
+        # A transducer of higher order than both models: its onset's model-order term,
+        # from the first fits (a refit held at a consensus shape compares no models).
+        terms = order_terms(cf)
         cf = [
             fit_channel(
                 x[ch], fs=fs, template=template, models=model, windows=windows,
@@ -208,7 +222,7 @@ def _ranges(
             else f
             for ch, f in enumerate(cf)
         ]  # fmt: skip
-        per_channel = [f.arrivals for f in cf]
+        per_channel = [with_order_terms(f, t) for f, t in zip(cf, terms, strict=True)]
     for ch, arr in enumerate(per_channel):
         found = dict(zip(arr.window.tolist(), range(len(arr)), strict=True))
         for w, (s0, _) in enumerate(windows):
@@ -222,7 +236,9 @@ def _ranges(
             d = scale * c * (t - offset_s)
             sig = scale * c * arr.sigma[i] / fs
             fl = arr.flag_names(i)
-            rows.append(ToF(k, tx, ch, float(d), float(sig), float(arr.snr_db[i]), float(t), fl))
+            st = float(scale * c * arr.sigma_transducer[i] / fs)
+            snr = float(arr.snr_db[i])
+            rows.append(ToF(k, tx, ch, float(d), float(sig), snr, float(t), fl, st))
     rows.sort(key=lambda r: (r.window, r.channel))
     return rows
 

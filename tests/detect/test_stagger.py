@@ -141,3 +141,36 @@ def test_receivers_that_disagree_on_the_shape_are_refitted():
         {0: "resonator"},
         {0: "resonator"},
     ]
+
+
+def test_a_split_beyond_maximally_flat_adds_the_model_order_term():
+    """``order_terms``: pooled over the receivers of a transmitter, a split ``Re nu / a^2``
+    at the maximally flat -1 adds nothing; one 3 (scaled) sigma beyond it half the term,
+    4 sigma the whole; ``with_order_terms`` adds ``r (k d)^2`` (k = 1 stagger, 2
+    resonator) to sigma and to sigma_transducer."""
+    from rangekit.detect.fitted import (
+        SPLIT_SIGMA_SCALE,
+        ChannelFit,
+        order_terms,
+        with_order_terms,
+    )
+    from rangekit.types import Arrivals
+
+    def fit(split, var, d2=100.0, fam=("stagger", "resonator")):
+        n = len(fam)
+        a = Arrivals(np.arange(n) * 1.0, FS, np.ones(n), np.zeros(n), np.ones(n),
+                     np.zeros((n, 1)))  # fmt: skip
+        return ChannelFit(a, np.array(fam, dtype=object), [0] * n, {}, {0: (d2, split, var)})
+
+    # Two receivers of variance v each: pooled sigma sqrt(v / 2) * SPLIT_SIGMA_SCALE.
+    v = 2.0 * (0.1 / SPLIT_SIGMA_SCALE) ** 2  # pooled, scaled sigma 0.1
+    assert order_terms([fit(-1.0, v), fit(-1.05, v)]) == [{}, {}]
+    half = order_terms([fit(-1.3, v), fit(-1.3, v)])
+    assert half[0][0] == pytest.approx((0.5, 100.0))
+    full = order_terms([fit(-1.4, v), fit(-1.5, v)])
+    assert full[1][0] == pytest.approx((1.0, 100.0))
+    f = fit(-1.5, v)
+    arr = with_order_terms(f, full[0])
+    assert arr.sigma == pytest.approx([math.sqrt(1 + 100.0), math.sqrt(1 + 400.0)])
+    assert arr.sigma_transducer == pytest.approx([10.0, 20.0])
+    assert with_order_terms(f, {}) is f.arrivals
