@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+from dataclasses import replace
 
 import click
 from rangekit_cli._options import (
@@ -19,7 +20,7 @@ from rangekit_cli._options import (
     verbosity_options,
 )
 from rangekit_cli.range_cmd import calibration_option
-from rangekit_cli.ultrasonic_options import ultrasonic_kwargs, ultrasonic_options
+from rangekit_cli.ultrasonic_options import ultrasonic_options, ultrasonic_setup
 
 #: Exit codes of ``rangekit batch`` beyond the common ones (docs/cli.md).
 EXIT_SOME_FAILED = 8
@@ -149,6 +150,7 @@ def batch_cmd(
     from rangekit_cli._options import detail, is_quiet
 
     from rangekit.batch import BatchOptions, find_sessions, pair_sessions_by_name, run_batch
+    from rangekit.ranging.config import Medium
 
     if scheduler is not None and jobs is not None:
         raise click.UsageError("--jobs and --scheduler exclude each other")
@@ -180,11 +182,10 @@ def batch_cmd(
         beepbeep = {"detector": detector, "temp_c": temp_c, "speed_m_s": speed}
     # The options describe sessions of --scheme; sessions whose sidecar names another
     # ultrasonic scheme get that scheme's defaults (and their sidecar's values).
-    ultra = {
-        s: ultrasonic_kwargs(kw if s == scheme else {}, scheme=s, temp_c=temp_c, speed=speed)
-        for s in ("oneway", "echo")
-    }
-    _probe_and_calibration(template, calibration, scheme, sd, kw, beepbeep, ultra)
+    setups = {s: ultrasonic_setup(kw if s == scheme else {}, scheme=s) for s in ("oneway", "echo")}
+    ultra = _probe_and_calibration(template, calibration, scheme, sd, kw, beepbeep, setups)
+    for s in ultra:
+        ultra[s] = replace(ultra[s], medium=Medium(temp_c=temp_c, speed_m_s=speed))
     options = BatchOptions(scheme=scheme, beepbeep=beepbeep, pair_by_name=pair_by_name, **ultra)
     if pair_by_name:
         sessions = pair_sessions_by_name(list(inputs))
@@ -265,25 +266,31 @@ def _details(options, sessions, output) -> None:
     detail(f"batch: options recorded in {meta_path(output)}")
 
 
-def _probe_and_calibration(template, calibration, scheme, sd, kw, beepbeep, ultra) -> None:
-    """Put ``--template`` and ``--calibration`` into the sessions' ranging options."""
+def _probe_and_calibration(template, calibration, scheme, sd, kw, beepbeep, setups) -> dict:
+    """Put ``--template`` and ``--calibration`` into the sessions' ranging options:
+    into ``beepbeep`` (a dict), and the :class:`rangekit.batch.UltrasonicOptions` of each
+    ultrasonic scheme from its ``setups`` (returned, by scheme)."""
     from rangekit_cli._options import load_template
     from rangekit_cli.range_cmd import _read_calibration, _refuse_self_distance
 
+    from rangekit.batch import UltrasonicOptions
+
+    ultra = {s: UltrasonicOptions(setup=v) for s, v in setups.items()}
     probe = load_template(template)
     if probe is not None:
         beepbeep["probe"] = probe
-        for s in ("oneway", "echo"):
-            ultra[s]["probe"] = probe
+        for s, v in setups.items():
             if s != scheme or kw.get("channels") is None:
-                ultra[s]["channels"] = None  # a lab's probe: any number of receivers
+                v = replace(v, channels=None)  # a lab's probe: any number of receivers
+            ultra[s] = UltrasonicOptions(setup=v, probe=probe)
     cal = _read_calibration(calibration, scheme)
     if cal is not None:
         if scheme == "beepbeep":
             _refuse_self_distance(sd)
             beepbeep["calibration"] = cal
         else:
-            ultra[scheme]["calibration"] = cal
+            ultra[scheme] = replace(ultra[scheme], calibration=cal)
+    return ultra
 
 
 def _self_distance(sd: list[float] | None) -> float | list[float]:

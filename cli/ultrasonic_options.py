@@ -14,6 +14,7 @@ from typing import TYPE_CHECKING
 
 import click
 from rangekit_cli._options import (
+    BEEP_OPTIONS,
     FiniteRange,
     LazyHelpOption,
     QOrAuto,
@@ -211,14 +212,7 @@ def make_burst(kw: dict, *, scheme: str):
     return replace(base, code=chips, fs=1e7, **given)
 
 
-_BEEP_ONLY = {
-    "f_hz": "--freq",
-    "n_bursts": "--bursts",
-    "spacing": "--spacing",
-    "burst_len": "--burst-len",
-    "taper": "--taper",
-    "beep_fs": "--beep-fs",
-}
+_BEEP_ONLY = BEEP_OPTIONS  # the beep options belong to --scheme beepbeep
 
 
 def ultrasonic_setup(kw: dict, *, scheme: str) -> OneWaySetup | EchoSetup:
@@ -260,10 +254,3 @@ def ultrasonic_setup(kw: dict, *, scheme: str) -> OneWaySetup | EchoSetup:
             raise click.BadParameter("ids must be whole numbers", param_hint="--tx-order")
         cfg["tx_ids"] = tuple(int(v) for v in vals)
     return OneWaySetup(**cfg)
-
-
-def ultrasonic_kwargs(kw: dict, *, scheme: str, temp_c: float, speed: float | None) -> dict:
-    """:func:`ultrasonic_setup` as keywords of ``range_ultrasonic_files`` with the medium's
-    ``temp_c`` and ``speed_m_s`` (for callers that still pass keywords)."""
-    setup = ultrasonic_setup(kw, scheme=scheme)
-    return {**setup.kwargs(), "temp_c": temp_c, "speed_m_s": speed}

@@ -63,7 +63,13 @@ from rangekit.batch._dask import (
     check_scheduler_address,
 )
 from rangekit.batch._dask import _dask_watch as _dask_watch
-from rangekit.batch._options import SCHEMES, BatchOptions, TwoWayOptions, json_value
+from rangekit.batch._options import (
+    SCHEMES,
+    BatchOptions,
+    TwoWayOptions,
+    UltrasonicOptions,
+    json_value,
+)
 from rangekit.batch._pairing import pair_sessions_by_name
 from rangekit.batch._ranging import run_session
 from rangekit.batch._results import (
@@ -93,6 +99,7 @@ __all__ = [
     "ResultsFile",
     "Session",
     "TwoWayOptions",
+    "UltrasonicOptions",
     "check_scheduler_address",
     "find_sessions",
     "iter_rows",

@@ -13,7 +13,9 @@ from typing import TYPE_CHECKING, Any
 from rangekit.errors import InvalidParameterError
 
 if TYPE_CHECKING:
+    from rangekit.physics import Medium
     from rangekit.ranging.calibration import Calibration
+    from rangekit.ranging.config import EchoSetup, OneWaySetup
     from rangekit.signals import Beep, Probe
 
 #: Schemes a session can be ranged with.
@@ -69,16 +71,52 @@ class TwoWayOptions:
 
 
 @dataclass(frozen=True)
+class UltrasonicOptions:
+    """The one-way or echo ranging options of a batch, typed like :class:`TwoWayOptions`.
+
+    ``setup`` is the job (:class:`~rangekit.ranging.config.OneWaySetup` or
+    :class:`~rangekit.ranging.config.EchoSetup`; None: the library's defaults),
+    ``medium`` the speed of sound (:class:`~rangekit.physics.Medium`; None: the
+    library's), ``probe`` a lab's probe instead of the coded burst, ``calibration`` a
+    calibration of the scheme. A session's sidecar values (temperature, period, latency,
+    transmitter order) replace the job's for that session.
+
+    >>> from rangekit.ranging.config import EchoSetup
+    >>> UltrasonicOptions(EchoSetup(period_s=0.07)).kwargs()["period_s"]
+    0.07
+    >>> UltrasonicOptions().kwargs()
+    {}
+    """
+
+    setup: OneWaySetup | EchoSetup | None = None
+    medium: Medium | None = None
+    probe: Probe | None = None
+    calibration: Calibration | None = None
+
+    def kwargs(self) -> dict[str, Any]:
+        """As keyword arguments of
+        :func:`~rangekit.ranging.ultrasonic.range_ultrasonic_files` (except ``scheme``);
+        what is not set is left out (the library's default)."""
+        out: dict[str, Any] = {} if self.setup is None else self.setup.kwargs()
+        if self.medium is not None:
+            out.update(self.medium.kwargs())
+        if self.probe is not None:
+            out["probe"] = self.probe
+        if self.calibration is not None:
+            out["calibration"] = self.calibration
+        return out
+
+
+@dataclass(frozen=True)
 class BatchOptions:
     """How sessions without a sidecar value are ranged.
 
     ``scheme`` is the default scheme; ``beepbeep`` the two-way options
     (:class:`TwoWayOptions`, or a dict of its fields); ``oneway`` and ``echo`` those of
-    the sessions of each scheme: a :class:`~rangekit.ranging.config.OneWaySetup` /
-    :class:`~rangekit.ranging.config.EchoSetup` (kept as its keywords), or a mapping of
-    the keyword arguments of :func:`rangekit.ranging.ultrasonic.range_ultrasonic_files`
-    except ``scheme`` (``temp_c``, ``speed_m_s``, ``probe``, ``calibration`` among them;
-    ``None`` is a value there, ``tx=None`` being no transducer model). ``pair_by_name`` changes
+    the sessions of each scheme: an :class:`UltrasonicOptions`, or just its job, a
+    :class:`~rangekit.ranging.config.OneWaySetup` /
+    :class:`~rangekit.ranging.config.EchoSetup` (the medium then the library's).
+    ``pair_by_name`` changes
     no ranging: set it when the sessions come from :func:`pair_sessions_by_name`, so that
     the results file records it and a resume with sessions grouped by rules 1-3 (other
     names, which would mix) is refused.
@@ -86,8 +124,8 @@ class BatchOptions:
 
     scheme: str = "beepbeep"
     beepbeep: TwoWayOptions = field(default_factory=TwoWayOptions)
-    oneway: Mapping[str, Any] = field(default_factory=dict)
-    echo: Mapping[str, Any] = field(default_factory=dict)
+    oneway: UltrasonicOptions = field(default_factory=UltrasonicOptions)
+    echo: UltrasonicOptions = field(default_factory=UltrasonicOptions)
     pair_by_name: bool = False
 
     def __post_init__(self) -> None:
@@ -100,12 +138,17 @@ class BatchOptions:
         for name, kind in (("oneway", OneWaySetup), ("echo", EchoSetup)):
             v = getattr(self, name)
             if isinstance(v, (OneWaySetup, EchoSetup)):
-                if not isinstance(v, kind):
-                    raise InvalidParameterError(
-                        f"{name}={type(v).__name__}(...) must be a {kind.__name__}"
-                    )
-                v = v.kwargs()
-            object.__setattr__(self, name, dict(v))  # a copy: the caller's may change later
+                v = UltrasonicOptions(setup=v)
+            if not isinstance(v, UltrasonicOptions):
+                raise InvalidParameterError(
+                    f"{name}={type(v).__name__}(...) must be an UltrasonicOptions or a "
+                    f"{kind.__name__}"
+                )
+            if v.setup is not None and not isinstance(v.setup, kind):
+                raise InvalidParameterError(
+                    f"{name}={type(v.setup).__name__}(...) must be a {kind.__name__}"
+                )
+            object.__setattr__(self, name, v)
 
     def fingerprint(self) -> str:
         """A stable JSON text of every option that changes results (checked on resume):
@@ -114,8 +157,8 @@ class BatchOptions:
             "scheme": self.scheme,
             "grouping": "pair-by-name" if self.pair_by_name else "rules",
             "beepbeep": json_value(self.beepbeep),
-            "oneway": json_value(self.oneway),
-            "echo": json_value(self.echo),
+            "oneway": json_value(self.oneway.kwargs()),
+            "echo": json_value(self.echo.kwargs()),
         }
         return json.dumps(parts, sort_keys=True, allow_nan=False)
 

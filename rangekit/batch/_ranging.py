@@ -58,7 +58,7 @@ def _beepbeep_rows(session: Session, opts: BatchOptions) -> list[dict[str, Any]]
 def _ultrasonic_rows(session: Session, scheme: str, opts: BatchOptions) -> list[dict[str, Any]]:
     from rangekit.ranging.ultrasonic import range_ultrasonic_files
 
-    kw = dict(opts.oneway if scheme == "oneway" else opts.echo)
+    kw = (opts.oneway if scheme == "oneway" else opts.echo).kwargs()
     p = session.params
     if "temp_c" in p and kw.get("speed_m_s") is None:
         kw["temp_c"] = p["temp_c"]

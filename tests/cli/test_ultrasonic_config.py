@@ -122,7 +122,8 @@ def test_bad_values_are_refused_naming_them(make, name):
 def test_batch_options_take_the_objects():
     setup = OneWaySetup(period_s=0.2, tx_ids=(1, 2))
     opts = BatchOptions(scheme="oneway", oneway=setup)
-    assert opts.oneway == setup.kwargs() and opts.oneway["tx_ids"] == [1, 2]
+    assert opts.oneway.setup == setup and opts.oneway.kwargs() == setup.kwargs()
+    assert opts.oneway.kwargs()["tx_ids"] == [1, 2]
 
 
 def test_cli_refuses_options_of_another_scheme(recs):
