@@ -344,3 +344,36 @@ def test_spans_at_both_ends_equal_the_whole_correlation():
     spans = np.array([[0, 300], [n - 300, n], [2000, 2600]])
     for (a, b), got in zip(spans, mf.correlate_spans(x, spans), strict=True):
         np.testing.assert_allclose(got, whole[a:b], rtol=1e-9, atol=1e-9 * np.abs(whole).max())
+
+
+# ---------------------------------------------------------------- first_path
+
+
+def _env(n=200, floor=0.01, **peaks):
+    e = np.full(n, floor)
+    for k, v in peaks.items():
+        e[int(k[1:])] = v
+    return e
+
+
+def test_first_path_takes_an_earlier_peak_at_exactly_the_threshold():
+    """'above max(k_noise noise, rel_threshold strongest)': a peak at exactly 0.25 of the
+    strongest (and above 6 noise) is the first path."""
+    env = _env(p50=0.25, p100=1.0)
+    p = M.first_path(env, noise=0.01)
+    assert p.lag == 50.0 and p.strongest_lag == 100.0 and p.snr == pytest.approx(25.0)
+    env[50] = np.nextafter(0.25, 0.0)  # just below: the strongest is the path
+    assert M.first_path(env, noise=0.01).lag == 100.0
+    env[50] = 0.05  # above the rel threshold's 0.25 x 0.2 but below 6 noise
+    assert M.first_path(env, noise=0.01, rel_threshold=0.2).lag == 100.0
+
+
+def test_first_path_search_range_edges():
+    env = _env(p50=0.5, p100=1.0)
+    for lo in (0, 1, 2):
+        assert M.first_path(env, lo=lo, noise=0.01).lag == 50.0
+    assert M.first_path(env, lo=51, noise=0.01).lag == 100.0
+    # a path at sample 0 is found by default (the search starts at 0)
+    assert M.first_path(_env(50, p0=1.0), noise=0.01).lag == 0.0
+    assert M.first_path(_env(50, p20=1.0), noise=0.01, hi=3) is None
+    assert M.first_path(_env(50, p20=0.04), noise=0.01) is None  # below k_detect noise

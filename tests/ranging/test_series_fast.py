@@ -238,7 +238,8 @@ def test_series_items_are_frozen():
 
     e = S.ExchangeRanges(0, 1.0, ())
     w = S.WindowRanges(0, 0.0, ())
-    for obj, attr in ((e, "t_s"), (w, "window")):
+    plan = S._BlockPlan(step=10, fs0=1.0, pre_s=0.0, post_s=0.0, signal=None, method="x")
+    for obj, attr in ((e, "t_s"), (w, "window"), (plan, "step")):
         with pytest.raises(dataclasses.FrozenInstanceError):
             setattr(obj, attr, 5)
 
