@@ -112,6 +112,8 @@ TESTS: dict[str, tuple[str, ...]] = {
 EQUIVALENT: dict[str, dict[tuple[str, str], str]] = {
     "rangekit/detect/condition.py": {
         ("low_pass_only = False", "False -> True"): "only `width` reads it, `tw` either way",
+        ("low_pass_only = lo - tw <= 0.0", "<= -> <"):
+            "at lo == tw the branch sets tw = lo, the value it had",
         ("if k <= 1:", "<= -> <"): "k = 1 through the run loop gives the same copy of m",
         ("if atten_db > 21:", "> -> >="): "both branches give beta 0 at exactly 21 dB",
         ("if len(x) * len(h) > 1 << 20:", "> -> >="):
