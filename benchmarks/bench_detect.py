@@ -246,6 +246,11 @@ def _per_call_costs(x: np.ndarray, beep: Beep, t_whole: float, n_fits: int) -> N
             best = min(best, (time.perf_counter() - t0) / count)
         return best
 
+    if any(len(v) < 2 for v in seen.values()):
+        print("  per call: the compiled beep loop (_edge_kernels._beeps_py) calls neither "
+              "edge_statistic nor refine_onset on this signal; its cost is the cProfile row "
+              "above")  # fmt: skip
+        return
     print("  per call (no profiler; one real call of each, compiled and numpy path):")
     for name, fn in (
         ("edge_statistic", refine.edge_statistic),
