@@ -33,13 +33,16 @@ __all__ = [
 #: Methods per signal kind; the first is the default. ``changepoint``: STFT change points
 #: refined by the bursts' edge fit (``docs/theory/beepbeep.md``); ``xcorr``: the whole
 #: beep's matched-filter peak; ``template``: matched filtering with noise weighting and
-#: first-path selection (``docs/theory/probes.md``), for coded bursts and probes. Not for
+#: first-path selection (``docs/theory/probes.md``), for coded bursts and probes;
+#: ``fitted``: a coded burst's arrivals timed by the transducer fit of one-way ranging
+#: (:func:`rangekit.detect.fitted.detect_coded`, the first paths ``range_oneway`` uses,
+#: transducers of unknown Q; ``docs/theory/ultrasonic.md``). Not for
 #: the beep: its 10 ms tone bursts give a matched-filter main lobe 20 ms wide, in which
 #: the first path cannot be told from a reflection (measured: a reflection 117 samples
 #: late taken in a 6 x 5 x 3 m room, confidence 1, no flag); its edges are what time it.
 METHODS: dict[str, tuple[str, ...]] = {
     "beep": ("changepoint", "xcorr"),
-    "coded": ("template",),
+    "coded": ("template", "fitted"),
     "probe": ("template",),
 }
 
@@ -104,7 +107,8 @@ def detect(
         Number of emissions in the channel (one per device of an exchange): at most this
         many arrivals, the best supported.
     min_separation_s : float, optional
-        Shortest time between two emissions' starts (``template`` only).
+        Shortest time between two emissions' starts (``template`` only; ``fitted``
+        takes ``windows=``, one arrival per activation window, instead).
     what : str
         The recording, for messages.
     beep, detector
@@ -145,6 +149,14 @@ def detect(
     signal = Beep() if signal is None else signal
     method = method_for(signal, method)
     signal.check_fits(fs, what=what)
+    if method == "fitted":  # one-way timing: the transducer fit (range_oneway's)
+        from rangekit.detect.fitted import detect_coded
+
+        if min_separation_s is not None or expected is not None:
+            raise InvalidParameterError(
+                "the fitted method takes windows=, not expected or min_separation_s"
+            )
+        return detect_coded(x, fs=fs, burst=signal, **kw)
     if method != "template":
         if min_separation_s is not None:
             raise InvalidParameterError(

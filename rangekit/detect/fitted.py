@@ -76,9 +76,11 @@ __all__ = [
     "N_TEST",
     "ChannelFit",
     "check_shapes",
+    "detect_coded",
     "detect_fitted",
     "fit_channel",
     "order_terms",
+    "transducer_models",
     "with_order_terms",
 ]
 
@@ -638,3 +640,58 @@ def with_order_terms(fit: ChannelFit, terms: dict) -> Arrivals:
             var[i] = t[0] * ORDER_STEPS[fam] ** 2 * t[1]
     st = np.sqrt(a.sigma_transducer**2 + var)
     return replace(a, sigma=np.sqrt(a.sigma**2 + var), sigma_transducer=st)
+
+
+def transducer_models(burst, *, fs: float, transducers: Sequence) -> tuple[tuple, float]:
+    """The fit's models for ``burst`` through ``transducers`` and its starting Q.
+
+    ``(ResonatorModel, StaggerModel)`` with ``stages`` the number of transducers given
+    (None ones left out) and ``f0`` their mean resonance, and the geometric mean of their
+    Q as the fit's start; ``((), 4.0)`` when none is given (nothing to fit).
+    """
+    from rangekit.detect.pathfit import ResonatorModel
+    from rangekit.detect.stagger import StaggerModel
+
+    ts = [t for t in transducers if t is not None]
+    if not ts:
+        return (), 4.0
+    f0 = sum(t.f0_hz for t in ts) / len(ts)
+    q0 = math.exp(sum(math.log(t.q) for t in ts) / len(ts))
+    kw = {"fs": fs, "f0_hz": f0, "stages": len(ts)}
+    return (ResonatorModel.for_burst(burst, **kw), StaggerModel.for_burst(burst, **kw)), q0
+
+
+def detect_coded(
+    x: np.ndarray,
+    *,
+    fs: float,
+    burst=None,
+    tx=None,
+    rx=None,
+    windows: np.ndarray | None = None,
+    search: tuple[int, int] | None = None,
+    **kw,
+) -> Arrivals:
+    """First paths of a coded burst in one channel, timed as :func:`rangekit.ranging.
+    oneway.range_oneway` times them (``rangekit.detect.detect(..., method="fitted")``).
+
+    The template is the drive through ``tx`` and ``rx`` (default rangekit's resonator,
+    Q 4, at both ends; only the fit's starting point), the arrivals are timed by
+    :func:`fit_channel` with both transducer models and carry the model-order term of
+    :func:`order_terms` of this one channel. ``windows``, ``search`` and ``**kw`` as
+    :func:`fit_channel` (``windows``: one arrival per window; default the whole channel).
+    """
+    from rangekit.detect.matched import coded_template
+    from rangekit.signals.barker import CodedBurst
+    from rangekit.signals.transducer import Transducer
+
+    burst = CodedBurst() if burst is None else burst
+    tx = Transducer() if tx is None else tx
+    rx = Transducer() if rx is None else rx
+    models, q0 = transducer_models(burst, fs=fs, transducers=(tx, rx))
+    template = coded_template(burst, fs=fs, tx=tx, rx=rx)
+    cf = fit_channel(
+        x, fs=fs, template=template, models=models, windows=windows, search=search,
+        q0=kw.pop("q0", q0), **kw,
+    )  # fmt: skip
+    return with_order_terms(cf, order_terms([cf])[0])

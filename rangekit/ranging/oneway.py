@@ -25,7 +25,6 @@ Examples
 
 from __future__ import annotations
 
-import math
 from collections.abc import Sequence
 
 import numpy as np
@@ -181,14 +180,9 @@ def range_oneway(
 
 def _fit_model(burst: CodedBurst, fs: float, transducers, fit: bool, stagger: bool = True):
     """The transducer fit's models and starting Q for ``transducers``, or ``(None, 4)``."""
-    ts = [t for t in transducers if t is not None]
-    if not fit or not ts:
-        return None, 4.0
-    from rangekit.detect.pathfit import ResonatorModel
-    from rangekit.detect.stagger import StaggerModel
+    from rangekit.detect.fitted import transducer_models
 
-    f0 = sum(t.f0_hz for t in ts) / len(ts)
-    q0 = math.exp(sum(math.log(t.q) for t in ts) / len(ts))
-    kw = {"fs": fs, "f0_hz": f0, "stages": len(ts)}
-    models = (ResonatorModel.for_burst(burst, **kw), StaggerModel.for_burst(burst, **kw))
+    models, q0 = transducer_models(burst, fs=fs, transducers=transducers)
+    if not fit or not models:
+        return None, 4.0
     return (models if stagger else models[:1]), q0
