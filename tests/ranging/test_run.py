@@ -12,7 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 import pytest
 
-from rangekit.errors import InvalidParameterError, UnreliableResultError
+from rangekit.errors import DetectionError, InvalidParameterError, UnreliableResultError
 from rangekit.ranging import run as R
 from rangekit.ranging.clock import ClockRates
 from rangekit.ranging.config import EchoSetup, OneWaySetup, SeriesOptions
@@ -214,3 +214,30 @@ def test_echo_series_through_run_range(tmp_path):
         "rangekit: 1 of 3 (window, channel) rows without a detection (empty distance: "
         "nothing in range)"
     ]
+    # the same file, not as a series: the whole-file rows, series False
+    whole = R.run_range([path], scheme="echo", ultrasonic=kw)
+    assert not whole.series and whole.meta == {"scheme": "echo", "files": [str(path)]}
+    assert [r["distance_m"] for r in whole.rows()] == [r["distance_m"] for r in rows]
+
+
+def test_two_way_series_through_run_range(tmp_path):
+    import soundfile as sf
+
+    from rangekit.physics import Medium
+    from rangekit.ranging.config import TwoWaySetup
+    from rangekit.ranging.series import SERIES_FIELDS
+    from rangekit.sim.recording import pair_devices, render_beepbeep
+
+    sim = render_beepbeep(pair_devices(2.0, self_distance_m=0.1), snr_db=30.0, rng=3)
+    one = np.stack(sim.recordings, axis=1)
+    x = np.concatenate([np.pad(one, ((0, 2 * 44100 - len(one)), (0, 0)))] * 2)
+    path = tmp_path / "two.wav"
+    sf.write(path, x, 44100, "PCM_16")
+    run = R.run_range([path], setup=TwoWaySetup(0.1), series=SeriesOptions())
+    assert run.series and run.fields == SERIES_FIELDS["beepbeep"]
+    rows = run.rows()
+    assert [round(r["distance_m"], 2) for r in rows] == [2.0, 2.0]
+    assert run.meta["series"] is True and run.meta["detector"] == "changepoint"
+    assert run.meta["files"] == [str(path)] and run.meta["speed_of_sound_m_s"] == Medium().c
+    with pytest.raises(DetectionError, match="is this one exchange"):  # not as a series
+        R.run_range([path], setup=TwoWaySetup(0.1))
