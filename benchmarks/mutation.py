@@ -130,6 +130,10 @@ EQUIVALENT: dict[str, dict[tuple[str, str], str]] = {
         ("c: float = field(init=False, repr=False, compare=False)", "False -> True"):
             "c is a function of the compared fields: the same equality and hash classes",
     },
+    "rangekit/ranging/run.py": {
+        ("return RangeRun(scheme, True, SERIES_FIELDS[scheme], meta, names[:1], rows, rows)",
+         "1 -> 2"): "an ultrasonic series has exactly one file (checked before): [:2] is [:1]",
+    },
     "rangekit/ranging/series.py": {
         ("if stop <= start:", "<= -> <"): "reading 0 frames gives the same empty block",
     },

@@ -239,5 +239,9 @@ def test_two_way_series_through_run_range(tmp_path):
     assert [round(r["distance_m"], 2) for r in rows] == [2.0, 2.0]
     assert run.meta["series"] is True and run.meta["detector"] == "changepoint"
     assert run.meta["files"] == [str(path)] and run.meta["speed_of_sound_m_s"] == Medium().c
+    given = R.run_range([path], setup=TwoWaySetup(0.1), series=SeriesOptions(),
+                        clock_rate=R.ClockRateCorrection(ppm=(0.0,)))  # fmt: skip
+    assert [r["distance_m"] for r in given.rows()] == pytest.approx([r["distance_m"] for r in rows])
+    assert given.meta["clock_rate"]["mode"] == "given"
     with pytest.raises(DetectionError, match="is this one exchange"):  # not as a series
         R.run_range([path], setup=TwoWaySetup(0.1))
