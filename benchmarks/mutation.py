@@ -136,6 +136,8 @@ EQUIVALENT: dict[str, dict[tuple[str, str], str]] = {
     },
     "rangekit/ranging/series.py": {
         ("if stop <= start:", "<= -> <"): "reading 0 frames gives the same empty block",
+        ("ok = (starts < n_samples) & ((stops - starts) >= 0.5 * per)", "< -> <="):
+            "a window starting at the end has length 0 and fails the half-period test",
     },
     "rangekit/ranging/config.py": {
         ('if hasattr(sd, "tolist") and getattr(sd, "ndim", 0) > 0:  # a numpy array',
