@@ -600,8 +600,10 @@ def order_terms(fits: Sequence[ChannelFit]) -> list[dict]:
     ``FLAT_SPLIT``: -1.3 to -2.5 fitted for a 6th-order Butterworth) is what a
     two-pole-pair element gives only with a double-humped response and a higher-order one
     gives always. Per transmitter (group label) the receivers' splits are pooled
-    (inverse-variance, the variance scaled by ``SPLIT_SIGMA_SCALE``); at ``z`` sigma
-    below ``FLAT_SPLIT`` the weight ``r`` rises from 0 at ``ORDER_Z[0]`` to 1 at
+    (inverse-variance, the variance scaled by ``SPLIT_SIGMA_SCALE``; ``z`` the larger of
+    the pooled split's and any one receiver's distance below ``FLAT_SPLIT`` in its
+    sigma, since receivers that disagree can hide a wide split in the pool); at ``z``
+    sigma below ``FLAT_SPLIT`` the weight ``r`` rises from 0 at ``ORDER_Z[0]`` to 1 at
     ``ORDER_Z[1]``, and each arrival of that transmitter gets the variance ``r (k d)^2``,
     ``k`` from :data:`ORDER_STEPS` by the model that timed it (the next order's step,
     Richardson's estimate of a truncation error from the last step). It is a transducer
@@ -620,6 +622,9 @@ def order_terms(fits: Sequence[ChannelFit]) -> list[dict]:
             continue
         split = float(np.sum(w[ok] * s[ok]) / np.sum(w[ok]))
         z = (FLAT_SPLIT - split) * math.sqrt(float(np.sum(w[ok])))
+        # Receivers that disagree (a room's reflections, a fit astray) may hide a wide
+        # split in the pooled one: any single receiver's own evidence counts too.
+        z = max(z, float(np.max((FLAT_SPLIT - s[ok]) * np.sqrt(w[ok]))))
         r = min(max((z - ORDER_Z[0]) / (ORDER_Z[1] - ORDER_Z[0]), 0.0), 1.0)
         if r > 0.0:
             for c in chans:

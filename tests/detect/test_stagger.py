@@ -169,6 +169,10 @@ def test_a_split_beyond_maximally_flat_adds_the_model_order_term():
     assert half[0][0] == pytest.approx((0.5, 100.0))
     full = order_terms([fit(-1.4, v), fit(-1.5, v)])
     assert full[1][0] == pytest.approx((1.0, 100.0))
+    # Receivers that disagree (pooled -0.8: nothing) still count one receiver's own
+    # evidence (-2.1 at its sigma 0.14: z 7.8).
+    odd = order_terms([fit(-0.5, v), fit(-2.1, v), fit(0.2, v)])
+    assert all(o[0][0] == 1.0 for o in odd)
     f = fit(-1.5, v)
     arr = with_order_terms(f, full[0])
     assert arr.sigma == pytest.approx([math.sqrt(1 + 100.0), math.sqrt(1 + 400.0)])
