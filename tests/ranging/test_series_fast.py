@@ -347,6 +347,9 @@ def test_ultrasonic_series_errors(tmp_path):
     assert len(list(S.range_series_ultrasonic(path, scheme="echo", period_s=0.04))) == 3
     with pytest.raises(InvalidParameterError, match="shorter than two samples"):
         list(S.range_series_ultrasonic(path, scheme="echo", period_s=1.5 / US_FS))
+    # exactly two samples pass the series' check (the echo's own blanking then refuses)
+    with pytest.raises(IncompatibleInputError, match="ring-down blanking"):
+        list(S.range_series_ultrasonic(path, scheme="echo", period_s=2.0 / US_FS))
     for kw in ({"scheme": "beepbeep", "period_s": 0.07}, {"scheme": "echo", "period_s": 0.0},
                {"scheme": "echo", "period_s": 0.07, "block_s": -1.0},
                {"scheme": "echo", "period_s": 0.07, "channels": 0},
