@@ -14,12 +14,11 @@ from __future__ import annotations
 
 import math
 import sys
-import threading
 import time
 from collections.abc import Callable
 from typing import TextIO
 
-__all__ = ["Heartbeat", "Progress"]
+__all__ = ["CountProgress", "Progress"]
 
 
 def _num(v: float) -> str:
@@ -173,77 +172,53 @@ class Progress:
                 self.stream.flush()
 
 
-class Heartbeat:
-    """A line that says a job of unknown progress is still running, with its elapsed time.
+class CountProgress:
+    """A library's ``progress(done, total)`` callback shown as a :class:`Progress`.
 
-    For jobs that cannot report their progress (an experiment's ``run`` gives no count
-    back): on a terminal a background thread rewrites ``label: running, 0:42`` in place
-    every ``interval_s``; elsewhere nothing is written. :meth:`close` (or leaving the
-    ``with`` block) stops the thread and clears the line.
+    The bar starts at the first call, after ``on_start(done)`` (which may print a
+    header: ``done`` is the work found finished before this run, e.g. a resumed
+    file), and counts only the work done after it. With ``quiet`` nothing is shown;
+    ``last`` still counts, for an interrupt message.
 
     Examples
     --------
     >>> import io
     >>> out = io.StringIO()
-    >>> with Heartbeat("kim2013: 3 trials", stream=out, tty=False):
-    ...     pass
-    >>> out.getvalue()
-    ''
+    >>> p = CountProgress("batch", unit="sessions", stream=out)
+    >>> for done in (2, 3, 5):
+    ...     p(done, 5)
+    >>> p.last, p.bar.total
+    (5, 3.0)
     """
 
     def __init__(
         self,
         label: str,
         *,
+        unit: str = "",
+        quiet: bool = False,
+        on_start: Callable[[int], None] | None = None,
         stream: TextIO | None = None,
-        tty: bool | None = None,
-        interval_s: float = 1.0,
-        clock: Callable[[], float] = time.monotonic,
     ) -> None:
-        self.label = label
-        self._stream = stream
-        self.tty = bool(getattr(self.stream, "isatty", lambda: False)()) if tty is None else tty
-        self.interval_s = interval_s
-        self._clock = clock
-        self._t0 = clock()
-        self._stop = threading.Event()
-        self._width = 0
-        self._thread = None
-        if self.tty:
-            self._thread = threading.Thread(target=self._run, daemon=True)
-            self._thread.start()
+        self.label, self.unit, self.quiet = label, unit, quiet
+        self.on_start, self.stream = on_start, stream
+        self.bar: Progress | None = None
+        self.last = 0
 
-    @property
-    def stream(self) -> TextIO:
-        return sys.stderr if self._stream is None else self._stream
-
-    def text(self, now: float) -> str:
-        """The line at wall time ``now``."""
-        return f"{self.label}: running, {_hms(max(0.0, now - self._t0))}"
-
-    def _write(self, line: str) -> None:
-        pad = " " * max(0, self._width - len(line))
-        self.stream.write("\r" + line + pad)
-        self.stream.flush()
-        self._width = len(line)
-
-    def _run(self) -> None:
-        while not self._stop.wait(self.interval_s):
-            self._write(self.text(self._clock()))
-
-    def __enter__(self) -> Heartbeat:
-        return self
-
-    def __exit__(self, *exc) -> None:
-        self.close()
+    def __call__(self, done: int, total: int) -> None:
+        if self.quiet:
+            self.last = done
+            return
+        if self.bar is None:
+            if self.on_start is not None:
+                self.on_start(done)
+            self.bar = Progress(total - done, self.label, unit=self.unit, stream=self.stream)
+            self.last = done
+        if done > self.last:
+            self.bar.update(done - self.last)
+            self.last = done
 
     def close(self) -> None:
-        """Stop the thread; clear the line if one was written."""
-        self._stop.set()
-        if self._thread is not None:
-            self._thread.join()
-            self._thread = None
-            if self._width:
-                self._write("")
-                self.stream.write("\r")
-                self.stream.flush()
+        """End the bar's line, if one was started."""
+        if self.bar is not None:
+            self.bar.close()

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import os
-from dataclasses import replace
 
 import click
 from rangekit_cli._options import (
@@ -11,16 +10,15 @@ from rangekit_cli._options import (
     clock_ppm_option,
     debug_option,
     detector_option,
-    float_list,
-    make_beep,
     self_distance_option,
     speed_of_sound_option,
     temperature_option,
     template_option,
     verbosity_options,
 )
+from rangekit_cli.batch_setup import batch_options, details
 from rangekit_cli.range_cmd import calibration_option
-from rangekit_cli.ultrasonic_options import ultrasonic_options, ultrasonic_setup
+from rangekit_cli.ultrasonic_options import ultrasonic_options
 
 #: Exit codes of ``rangekit batch`` beyond the common ones (docs/cli.md).
 EXIT_SOME_FAILED = 8
@@ -149,8 +147,7 @@ def batch_cmd(
     _one_thread_per_worker()
     from rangekit_cli._options import detail, is_quiet
 
-    from rangekit.batch import BatchOptions, find_sessions, pair_sessions_by_name, run_batch
-    from rangekit.ranging.config import Medium
+    from rangekit.batch import find_sessions, pair_sessions_by_name, run_batch
 
     if scheduler is not None and jobs is not None:
         raise click.UsageError("--jobs and --scheduler exclude each other")
@@ -164,54 +161,34 @@ def batch_cmd(
         raise click.UsageError("--pair-by-name applies to --scheme beepbeep only")
     if pair_by_name and len(inputs) < 2:
         raise click.UsageError(f"--pair-by-name needs at least 2 device folders, got {len(inputs)}")
-    sd = float_list(self_distance, name="--self-distance", lo=0.0, hi=2.0)
-    if scheme == "beepbeep":
-        for k in ("latency", "period", "tx_order", "channels", "min_range", "max_range"):
-            if kw.get(k) is not None:
-                opt = "--" + k.replace("_", "-")
-                raise click.UsageError(f"{opt} applies to --scheme oneway and echo only")
-        beepbeep = {
-            "beep": make_beep(kw),
-            "detector": detector,
-            "temp_c": temp_c,
-            "speed_m_s": speed,
-            "self_distance_m": _self_distance(sd),
-            "clock_ppm": clock_ppm,
-        }
-    else:
-        beepbeep = {"detector": detector, "temp_c": temp_c, "speed_m_s": speed}
-    # The options describe sessions of --scheme; sessions whose sidecar names another
-    # ultrasonic scheme get that scheme's defaults (and their sidecar's values).
-    setups = {s: ultrasonic_setup(kw if s == scheme else {}, scheme=s) for s in ("oneway", "echo")}
-    ultra = _probe_and_calibration(template, calibration, scheme, sd, kw, beepbeep, setups)
-    for s in ultra:
-        ultra[s] = replace(ultra[s], medium=Medium(temp_c=temp_c, speed_m_s=speed))
-    options = BatchOptions(scheme=scheme, beepbeep=beepbeep, pair_by_name=pair_by_name, **ultra)
+    options = batch_options(
+        scheme,
+        pair_by_name,
+        self_distance,
+        temp_c,
+        speed,
+        clock_ppm,
+        detector,
+        template,
+        calibration,
+        kw,
+    )
     if pair_by_name:
         sessions = pair_sessions_by_name(list(inputs))
     else:
         sessions = find_sessions(list(inputs))
     n_jobs = jobs if jobs is not None else (os.cpu_count() or 1)
     where = f"on {scheduler}" if scheduler else f"{n_jobs} job{'s' if n_jobs != 1 else ''}"
-    state: dict = {"bar": None, "last": 0}
+    from rangekit_cli._progress import CountProgress
+
+    def on_start(done: int) -> None:  # done: sessions found in a resumed file
+        click.echo(f"batch: {len(sessions)} sessions, {where} -> {output}", err=True)
+        details(options, sessions, output)
+        if done:
+            click.echo(f"batch: {done} sessions already in {output}, skipped", err=True)
+
     quiet = is_quiet()
-
-    def progress(done: int, total: int) -> None:
-        if quiet:
-            state["last"] = done  # counted for the interrupt message
-            return
-        if state["bar"] is None:  # first call: done = sessions found in a resumed file
-            from rangekit_cli._progress import Progress
-
-            click.echo(f"batch: {len(sessions)} sessions, {where} -> {output}", err=True)
-            _details(options, sessions, output)
-            if done:
-                click.echo(f"batch: {done} sessions already in {output}, skipped", err=True)
-            state["bar"] = Progress(total - done, "batch", unit="sessions")
-            state["last"] = done
-        if done > state["last"]:
-            state["bar"].update(done - state["last"])
-            state["last"] = done
+    progress = CountProgress("batch", unit="sessions", quiet=quiet, on_start=on_start)
 
     try:
         summary = run_batch(
@@ -224,16 +201,14 @@ def batch_cmd(
             progress=progress,
         )
     except KeyboardInterrupt:
-        if state["bar"] is not None:
-            state["bar"].close()
+        progress.close()
         click.echo(
-            f"rangekit: interrupted: {state['last']} of {len(sessions)} sessions are in "
+            f"rangekit: interrupted: {progress.last} of {len(sessions)} sessions are in "
             f"{output}; rerun with --resume to finish",
             err=True,
         )
         click.get_current_context().exit(130)
-    if state["bar"] is not None:
-        state["bar"].close()
+    progress.close()
     if not quiet:
         click.echo(
             f"batch: {summary.ok} of {summary.total} sessions ranged, {summary.failed} failed"
@@ -245,59 +220,3 @@ def batch_cmd(
         if not quiet:
             detail(f"batch: first failed session: {summary.first_error}")
         click.get_current_context().exit(EXIT_ALL_FAILED if summary.ok == 0 else EXIT_SOME_FAILED)
-
-
-def _details(options, sessions, output) -> None:
-    """With --verbose: what was chosen (stderr), before the progress."""
-    from rangekit_cli._options import detail
-
-    from rangekit.batch import meta_path
-
-    two_way = options.beepbeep
-    d = two_way.detector or "changepoint"
-    given = "probe (--template)" if two_way.probe is not None else f"detector {d}"
-    by_sidecar = sum(bool(s.scheme or s.params) for s in sessions)
-    detail(
-        f"batch: scheme {options.scheme}, {given}; {by_sidecar} of {len(sessions)} sessions "
-        "take their scheme or setup from a sidecar"
-    )
-    if options.pair_by_name:
-        detail("batch: sessions paired by name across the device folders")
-    detail(f"batch: options recorded in {meta_path(output)}")
-
-
-def _probe_and_calibration(template, calibration, scheme, sd, kw, beepbeep, setups) -> dict:
-    """Put ``--template`` and ``--calibration`` into the sessions' ranging options:
-    into ``beepbeep`` (a dict), and the :class:`rangekit.batch.UltrasonicOptions` of each
-    ultrasonic scheme from its ``setups`` (returned, by scheme)."""
-    from rangekit_cli._options import load_template
-    from rangekit_cli.range_cmd import _read_calibration, _refuse_self_distance
-
-    from rangekit.batch import UltrasonicOptions
-
-    ultra = {s: UltrasonicOptions(setup=v) for s, v in setups.items()}
-    probe = load_template(template)
-    if probe is not None:
-        beepbeep["probe"] = probe
-        for s, v in setups.items():
-            if s != scheme or kw.get("channels") is None:
-                v = replace(v, channels=None)  # a lab's probe: any number of receivers
-            ultra[s] = UltrasonicOptions(setup=v, probe=probe)
-    cal = _read_calibration(calibration, scheme)
-    if cal is not None:
-        if scheme == "beepbeep":
-            _refuse_self_distance(sd)
-            beepbeep["calibration"] = cal
-        else:
-            ultra[scheme] = replace(ultra[scheme], calibration=cal)
-    return ultra
-
-
-def _self_distance(sd: list[float] | None) -> float | list[float]:
-    """--self-distance as the two-way option; not given: the library's default
-    (:class:`rangekit.ranging.config.TwoWaySetup`), recorded as such in the results."""
-    from rangekit.ranging.config import TwoWaySetup
-
-    if sd is None:
-        return TwoWaySetup().self_distance_m
-    return sd[0] if len(sd) == 1 else sd

@@ -154,19 +154,17 @@ def test_experiment_csv_loads_like_its_json():
     assert format_report(rep, "table").startswith("# A demo (trials=2, seed=1)\n")
 
 
-def test_heartbeat_on_a_terminal_only():
-    from rangekit_cli._progress import Heartbeat
+def test_count_progress_counts_only_this_runs_work():
+    from rangekit_cli._progress import CountProgress
 
+    starts = []
     out = io.StringIO()
-    with Heartbeat("kim2013: 3 trials", stream=out, tty=True, interval_s=0.001) as hb:
-        for _ in range(10000):  # until the thread has written a line (no time asserted)
-            if out.getvalue():
-                break
-            hb._stop.wait(0.001)
-    text = out.getvalue()
-    assert text.startswith("\rkim2013: 3 trials: running, 0:0")
-    assert text.endswith("\r")  # the line is cleared at the end
-    off = io.StringIO()
-    with Heartbeat("x", stream=off, tty=False, interval_s=0.001):
-        pass
-    assert off.getvalue() == ""
+    p = CountProgress("batch", unit="sessions", on_start=starts.append, stream=out)
+    for done in (4, 4, 6, 10):  # 4 found done in a resumed file, then 6 of this run
+        p(done, 10)
+    assert starts == [4] and p.last == 10
+    assert p.bar.total == 6 and p.bar.done == 6
+    p.close()
+    quiet = CountProgress("batch", quiet=True, on_start=starts.append, stream=out)
+    quiet(3, 10)
+    assert quiet.bar is None and quiet.last == 3 and starts == [4]
