@@ -149,7 +149,8 @@ def test_4khz_sweep_is_one_arrival_per_channel_and_flags_its_doubts(rirs):
     # The channels where a second path splits the direct pulse are flagged.
     amb = np.array(["ambiguous_first_path" in r[2] for r in rows])
     assert amb.sum() >= 5  # measured 6 / 12
-    assert np.all(np.abs(e[amb]) >= 6.0)  # measured 7.2-12.0 samples
+    assert np.all(np.abs(e[amb]) >= 5.0)  # measured 5.6-11.9 samples (7.2-12.0 before the
+    # side-lobe pull of later paths was taken off)
 
 
 def test_4khz_sweep_is_within_2_sigma_or_flagged(rirs):
