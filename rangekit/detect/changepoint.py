@@ -550,7 +550,7 @@ def _candidates(
 ) -> tuple[int, int, np.ndarray, np.ndarray, np.ndarray]:
     """``(n_win, hop, band energy, its local floor, change-point frames)`` of ``x``.
 
-    With ``condition``, clicks (:func:`click_mask`) are zeroed before the band energy is
+    With ``condition``, clicks (:func:`click_mask`) are bridged before the band energy is
     taken: a click's broadband energy would raise a change point of its own whose frames
     run into a beep starting within a window after it, which then raises none.
     """
@@ -558,7 +558,12 @@ def _candidates(
     if condition:
         clicks = click_mask(clip_mask(x), fs=fs)
         if clicks.any():
-            x = np.where(clicks, 0.0, x)
+            # bridged by a straight line between the samples around them: a click goes,
+            # a slow waveform that touched the rail there stays as it was (zeroing it
+            # would put a step, broadband energy, in its place)
+            idx, keep = np.flatnonzero(clicks), np.flatnonzero(~clicks)
+            x = np.array(x, dtype=np.float64)
+            x[idx] = np.interp(idx, keep, x[keep]) if len(keep) else 0.0
     e = band_energy(x, fs=fs, f_hz=np.array([beep.f_hz]), n_win=n_win, hop=hop)
     floor = _floor(e, fs=fs, hop=hop)
     frames = _change_points(
