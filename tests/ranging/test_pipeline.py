@@ -140,6 +140,10 @@ def test_spacing_hint_explains_a_wrong_spacing():
     # the rule's edges: a gap of exactly 0.3 spacings is an echo, not a spacing; a spacing
     # off by exactly a quarter burst still fits
     assert P._spacing_hint(np.array([0.0, 0.3 * b.spacing_s * FS]), beep=b, fs=FS) == ""
+    # half a spacing is a (wrong) spacing, not an echo
+    assert f"bursts are {0.5 * want:.0f} samples apart" in P._spacing_hint(
+        np.array([0.0, 0.5 * want]), beep=b, fs=FS
+    )
     quarter = 0.25 * b.burst_s * FS
     assert P._spacing_hint(np.array([0.0, want + quarter]), beep=b, fs=FS) == ""
     assert P._spacing_hint(np.array([0.0, want + quarter + 0.01]), beep=b, fs=FS) != ""
