@@ -217,11 +217,14 @@ _INT_AS_FLOAT32 = {"PCM_16": ("int16", 2.0**-15), "PCM_24": ("int32", 2.0**-31)}
 _INT_BLOCK_FRAMES = 1 << 18
 
 
-def _read_int_float32(f, subtype: str) -> np.ndarray:
-    """The rest of open file ``f`` (16- or 24-bit PCM) as float32, (frames, channels):
-    read block by block as integers into one buffer and scaled into the output."""
+def _read_int_float32(f, subtype: str, frames: int | None = None) -> np.ndarray:
+    """The next ``frames`` frames (default: the rest) of open file ``f`` (16- or 24-bit
+    PCM) as float32, (frames, channels): read block by block as integers into one buffer
+    and scaled into the output."""
     idt, scale = _INT_AS_FLOAT32[subtype]
     n, c = f.frames - f.tell(), f.channels
+    if frames is not None:
+        n = max(0, min(n, int(frames)))
     out = np.empty((n, c), dtype=np.float32)
     buf = np.empty((min(n, _INT_BLOCK_FRAMES), c), dtype=idt)
     i = 0

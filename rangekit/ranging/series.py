@@ -535,7 +535,7 @@ def _read_block(f, start: int, stop: int) -> np.ndarray:
     ``read_audio(dtype="auto")`` of the whole file), and needs no finiteness or peak check;
     anything else goes through :func:`rangekit.io.audio.read_frames` (float64, checked).
     """
-    from rangekit.io.audio import _name, read_frames
+    from rangekit.io.audio import _INT_AS_FLOAT32, _name, _read_int_float32, read_frames
 
     if _BLOCK_DTYPE != "auto" or f.subtype not in _INTEGER_SUBTYPES:
         return np.ascontiguousarray(read_frames(f, start, stop).T)
@@ -544,7 +544,10 @@ def _read_block(f, start: int, stop: int) -> np.ndarray:
         return np.zeros((f.channels, 0), dtype=np.float32)
     try:
         f.seek(start)
-        x = f.read(stop - start, dtype="float32", always_2d=True)
+        if f.subtype in _INT_AS_FLOAT32:  # PCM 16/24: integers scaled by numpy (2.4x less CPU)
+            x = _read_int_float32(f, f.subtype, stop - start)
+        else:
+            x = f.read(stop - start, dtype="float32", always_2d=True)
     except RuntimeError as e:  # soundfile.LibsndfileError is a RuntimeError
         raise AudioFormatError(f"'{_name(f)}': cannot read samples {start}-{stop} ({e})") from e
     return np.ascontiguousarray(x.T)  # mono: a view (a (1, n) array is contiguous)

@@ -51,3 +51,34 @@ def test_the_integer_path_is_taken_and_other_subtypes_keep_libsndfile(tmp_path, 
     sf.write(tmp_path / "c.wav", np.full((1000, 1), 0.25), 48000, subtype="PCM_U8")
     np.testing.assert_array_equal(read_audio(tmp_path / "c.wav")[0], 0.25)
     assert calls == ["PCM_16"]
+
+
+@pytest.mark.parametrize("subtype", ["PCM_16", "PCM_24", "PCM_U8"])
+@pytest.mark.parametrize("channels", [1, 2])
+def test_series_blocks_equal_libsndfiles_float32(tmp_path, subtype, channels, monkeypatch):
+    """``range --series`` reads its blocks through the same integer path (PCM 16/24)."""
+    from rangekit.ranging import series
+
+    p = tmp_path / "x.wav"
+    frames = A._INT_BLOCK_FRAMES + 777  # a block crosses the integer buffer's size
+    if subtype == "PCM_U8":  # libsndfile's own path
+        sf.write(
+            p, np.linspace(-0.5, 0.5, frames * channels).reshape(frames, -1), 48000, subtype=subtype
+        )
+    else:
+        _write(p, subtype, frames, channels)
+    calls = []
+    real = A._read_int_float32
+    monkeypatch.setattr(
+        A, "_read_int_float32", lambda f, st, n=None: calls.append(n) or real(f, st, n)
+    )
+    with sf.SoundFile(p) as f:
+        for start, stop in [(0, 1000), (123, frames - 5), (frames - 100, frames + 400)]:
+            x = series._read_block(f, start, stop)
+            f.seek(start)
+            want = f.read(min(stop, frames) - start, dtype="float32", always_2d=True).T
+            assert x.dtype == np.float32 and x.flags["C_CONTIGUOUS"]
+            np.testing.assert_array_equal(x, want)
+    assert calls == (
+        [] if subtype == "PCM_U8" else [1000, frames - 128, 100]
+    )  # the last clipped to the end
