@@ -20,7 +20,10 @@ DUHL distance row). The state is the pose and one range bias per anchor,
   and the range is applied with ``R / w``: Huber (``w = min(1, k/|ν|)``, k = 1.5; Huber
   1964, the Huber-Kalman filter of Karlgaard & Schaub 2007) or Student-t (``w = (n + 1) /
   (n + ν²)``, n = 4; Roth et al. 2013). No range is thrown away; every range with w < 1 is
-  reported (:class:`DownWeighted`).
+  reported (:class:`DownWeighted`). The weighted updates report more information than
+  the M-estimate has when the ranges have heavier tails: the final bias 1-sigmas are
+  widened by the Huber sandwich factor ``E[w] E[ψ²] / E[ψ′]²`` (ψ = wν; Huber 1964) of the
+  reported hypothesis's innovations (at least 1; :attr:`AnchorTrack.bias_scale`).
 - **Start without a pose**: the first ranges up to ``init_window_s`` (at least three
   anchors, or two, then both circle intersections) are multilaterated by Gauss-Newton
   (the rig's bias means removed); the heading is unknown, so a bank of ``n_heading``
@@ -186,7 +189,8 @@ class AnchorTrack:
         Hypotheses alive at each row.
     anchor_ids : ndarray of int (A,)
     bias_m, bias_sigma_m : ndarray (A,)
-        Final bias estimates and 1-sigmas (smoothed when smoothed).
+        Final bias estimates and 1-sigmas (smoothed when smoothed). The 1-sigmas include
+        ``sqrt(bias_scale)``.
     downweighted : list of DownWeighted
         Ranges applied with weight < 1 by the reported hypothesis.
     start : str
@@ -194,6 +198,12 @@ class AnchorTrack:
     start_t_s : float
     heading : bool
         True: state ``[x, y, φ, b…]``; False: ``[x, y, vx, vy, b…]``.
+    bias_scale : float
+        Variance factor (≥ 1) applied to ``bias_sigma_m``: the sandwich ``E[w] E[ψ²] /
+        E[ψ′]²`` of the reported hypothesis's normalised innovations ν (ψ = wν), the
+        M-estimator's asymptotic variance (Huber 1964) over the information the weighted
+        updates report. About 1.04 under 5 % outliers, 1.55 under 15 % (docs/rigs.md);
+        ``P`` and ``P_smooth`` do not include it.
     """
 
     t_s: np.ndarray
@@ -211,6 +221,7 @@ class AnchorTrack:
     start: str
     start_t_s: float
     heading: bool
+    bias_scale: float = 1.0
 
     def _pick(self, smoothed: bool):
         if smoothed:
@@ -239,6 +250,15 @@ def _robust_weight(nu: np.ndarray, robust: str, k: float, dof: float) -> np.ndar
     if robust == "student-t":
         return (dof + 1.0) / (dof + a * a)
     return np.ones_like(a)
+
+
+def _robust_slope(nu: np.ndarray, robust: str, k: float, dof: float) -> np.ndarray:
+    """ψ′(ν) = d(w ν)/dν of :func:`_robust_weight`."""
+    if robust == "huber":
+        return (np.abs(nu) <= k).astype(np.float64)
+    if robust == "student-t":
+        return (dof + 1.0) * (dof - nu * nu) / (dof + nu * nu) ** 2
+    return np.ones_like(nu)
 
 
 def range_model(
@@ -329,6 +349,14 @@ class _Bank:
         self.ll = np.zeros(x.shape[0])
         self.alive = np.ones(x.shape[0], dtype=bool)
         self.Phi = np.broadcast_to(np.eye(self.d), P.shape).copy()
+        self.sand = np.zeros((x.shape[0], 4))  # Σ w, Σ ψ², Σ ψ′, count (sandwich factor)
+
+    def bias_scale(self, h: int) -> float:
+        """Sandwich variance factor ``E[w] E[ψ²] / E[ψ′]²`` of hypothesis ``h``, at least 1."""
+        sw, spsi2, sdpsi, n = self.sand[h]
+        if n < 10 or sdpsi <= 0:
+            return 1.0
+        return max(1.0, (sw / n) * (spsi2 / n) / (sdpsi / n) ** 2)
 
     def predict_odo(self, dt, vr, vl, B, k_v, slip_psd, bias_psd):
         x, P = self.x, self.P
@@ -393,6 +421,9 @@ class _Bank:
         S0 = np.einsum("hi,hi->h", Hm, PH) + var
         nu = y / np.sqrt(S0)
         w = _robust_weight(nu, robust, k, dof)
+        self.sand += np.column_stack(
+            [w, (w * nu) ** 2, _robust_slope(nu, robust, k, dof), np.ones_like(w)]
+        )
         Rw = var / w
         S = S0 - var + Rw
         K = PH / S[:, None]
@@ -406,6 +437,7 @@ class _Bank:
 
     def keep(self, idx: np.ndarray) -> None:
         self.x, self.P, self.ll, self.Phi = self.x[idx], self.P[idx], self.ll[idx], self.Phi[idx]
+        self.sand = self.sand[idx]
 
 
 def _survivors(bank: _Bank, prune_nats: float) -> np.ndarray:
@@ -793,6 +825,7 @@ def track_anchors(
     ]  # fmt: skip
     xsm = Psm = xl = Pl = None
     final = int(hid[int(np.argmax(bank.ll))])
+    scale = bank.bias_scale(int(np.argmax(bank.ll)))
     if smooth and n_rows:
         xl = hist_x[:, final].copy()
         Pl = hist_P[:, final].copy()
@@ -801,14 +834,14 @@ def track_anchors(
         xl[:, off:] += bias_prior
     src_x, src_P = (xsm, Psm) if smooth else (xs, Ps)
     bias = src_x[-1, off:] if n_rows else bias_prior
-    bsig = np.sqrt(np.diagonal(src_P[-1])[off:]) if n_rows else rig.anchor_bias_sigma_m
+    bsig = np.sqrt(scale * np.diagonal(src_P[-1])[off:]) if n_rows else rig.anchor_bias_sigma_m
     if heading:
         for arr in (xs, xsm):
             if arr is not None:
                 arr[:, 2] = (arr[:, 2] + np.pi) % (2 * np.pi) - np.pi
     return AnchorTrack(
         dist.t_s[k_next:].copy(), xs, Ps, xsm, Psm, xl, Pl, nh, rig.anchor_ids.copy(),
-        bias, bsig, down, start, t0, heading,
+        bias, bsig, down, start, t0, heading, scale,
     )  # fmt: skip
 
 

@@ -218,14 +218,39 @@ def test_bias_and_position_sigmas_are_honest_under_the_mismatched_law():
         for seed in range(24, 32):
             run = simulate_rig_run(square_rig(), duration_s=120.0, range_rate_hz=rate_hz, rng=seed)
             p0 = run.truth_pose([run.log.odometry.t_s[0]])[0]
-            c = consistency(track_anchors(run.log, run.rig, initial_pose=p0), run)
+            trk = track_anchors(run.log, run.rig, initial_pose=p0)
+            c = consistency(trk, run)
             z.append(c["bias_z"])
             nees.append(c["nees"])
+            assert 1.0 <= trk.bias_scale <= 1.3, trk.bias_scale  # measured 1.0-1.2
     z = np.concatenate(z)
     within, rms = np.mean(np.abs(z) <= 2.0), np.sqrt(np.mean(z**2))
     assert within >= 0.85, within  # measured 0.953 (5 Hz 0.969, 10 Hz 0.938)
-    assert 0.6 <= rms <= 1.4, rms  # measured 0.95 (0.94, 0.96)
+    assert 0.6 <= rms <= 1.4, rms  # measured 0.93 (0.95 without the sandwich factor)
     assert 1.0 <= np.mean(nees) <= 3.0, nees  # measured 1.69 (1.62, 1.76)
+
+
+def test_bias_sigma_widened_by_the_huber_sandwich_under_15_percent_outliers():
+    """Three times the outliers (15 %, one-sided): the weighted updates report more
+    information than the Huber M-estimate has; the sandwich factor E[w] E[psi^2] /
+    E[psi']^2 widens the bias sigma (Huber 1964). 5 Hz, 120 s, seeds 12-17 (held out:
+    measured first on 0-11). Still short of 95 %: the clipped outliers also shift Huber's
+    location, common to the anchors (docs/rigs.md)."""
+    from rangekit.localize._rig_acceptance import consistency
+
+    z, scales = [], []
+    for seed in range(12, 18):
+        run = simulate_rig_run(square_rig(), duration_s=120.0, range_rate_hz=5.0, rng=seed,
+                               outlier_prob=0.15)  # fmt: skip
+        p0 = run.truth_pose([run.log.odometry.t_s[0]])[0]
+        trk = track_anchors(run.log, run.rig, initial_pose=p0)
+        z.append(consistency(trk, run)["bias_z"])
+        scales.append(trk.bias_scale)
+    z = np.concatenate(z)
+    assert np.all((np.array(scales) >= 1.3) & (np.array(scales) <= 2.5)), scales  # 1.45-1.78
+    within, rms = np.mean(np.abs(z) <= 2.0), np.sqrt(np.mean(z**2))
+    assert within >= 0.70, within  # measured 0.79 (0.625 without the factor)
+    assert rms <= 1.7, rms  # measured 1.46 (1.86 without the factor)
 
 
 def test_acceptance_without_initial_pose(runs):
