@@ -420,6 +420,8 @@ class MatchedFilter:
         the cost for ``D = 4``.
         """
         x = _check_x("x", x)
+        if self.decimation == 1:  # a broadband template: no band to cut (exact)
+            return np.abs(self._segments(x, len(x), lead=self.pre))
         return self._envelope_segments(x, len(x), lead=self.pre)
 
     def _band_at(self, n: int) -> tuple[int, np.ndarray]:
@@ -477,6 +479,8 @@ class MatchedFilter:
     def _envelope_spans(self, x: np.ndarray, spans: np.ndarray) -> list[np.ndarray]:
         """Each span on its own FFT grid (its result depends on its samples only, not
         on where it lies in ``x`` or on the other spans); spans of one grid size batched."""
+        if self.decimation == 1:  # a broadband template: no band to cut (exact)
+            return [np.abs(c) for c in self._correlate_spans(x, spans)]
         sp = np.asarray(spans, dtype=np.int64).reshape(-1, 2)
         d, sf = self.decimation, self._fft
         rdt = DTYPES[self.dtype][0]
