@@ -27,7 +27,7 @@ Simulation (:mod:`rangekit.sim`)
     :func:`render_beepbeep`, :func:`pair_devices`, :class:`Device`, :class:`ShoeboxRoom`;
     the scenes of ``rangekit synth``: :func:`synth_beepbeep`, :func:`synth_oneway`,
     :func:`synth_echo`, :class:`Synthesis`
-Figures (:mod:`rangekit.plot.jobs`, matplotlib)
+Figures (:mod:`rangekit.plot.jobs`, drawn when called)
     :func:`spectrogram_figure`, :func:`matched_figure`, :func:`ranges_figure`,
     :func:`track_figure`, :func:`cdf_figure`
 Results and errors

@@ -289,7 +289,7 @@ def test_large_nu_sir_runs_on_fewer_walks(monkeypatch):
 
 def test_run_has_the_standard_signature():
     sig = inspect.signature(run)
-    assert list(sig.parameters) == ["trials", "seed", "plots_dir"]
+    assert list(sig.parameters) == ["trials", "seed", "plots_dir", "progress"]
     assert all(p.kind is p.KEYWORD_ONLY for p in sig.parameters.values())
     assert sig.parameters["trials"].default == girard2011.DEFAULT_TRIALS
     assert girard2011.NUS == (150, 1_000, 10_000, 100_000)
