@@ -1035,8 +1035,15 @@ def _beep_row(
     )
     if later is not None:
         # Re-anchored once on an edge cut by the window's late end; the retry's window
-        # puts that edge where a change point at the beep's start would.
-        if not retry:
+        # puts that edge where a change point at the beep's start would. An edge where a
+        # later burst of a beep already found lies is that burst, not a new beep (its
+        # own retry would time that beep's bursts 1.. as bursts 0..: a beep one burst
+        # spacing late, preferred over the true one when that one's first burst clipped).
+        spacing = beep.spacing_s * fs
+        lo, hi = later - n_win // 2 - look + sep, later + n_win + hop - sep
+        if not retry or any(
+            found.within(lo - k * spacing, hi - k * spacing) for k in range(1, beep.n_bursts)
+        ):
             return None
         return _beep_row(
             cond, later, e, found, fs=fs, beep=beep, n_win=n_win, hop=hop,
