@@ -27,11 +27,12 @@ def impaired_rows():
 
 def test_impaired_room_corpus(impaired_rows):
     s = summarize(impaired_rows)
-    # Measured (seed 11, 60 exchanges): 3.3 % failures, median 4.8 mm, p90 2.4 cm, 5 errors
-    # above 10 cm all flagged, 88 % within 2 sigma (docs/accuracy.md: 200 exchanges).
+    # Measured (seed 11, 60 exchanges): no failures, median 3.5 mm, p90 1.8 cm, 5 errors
+    # above 10 cm all flagged, 90 % within 2 sigma (docs/accuracy.md: 200 exchanges). A
+    # beep timed one burst spacing late (fixed since) made the p90 9.4 cm.
     assert s["failure_rate"] <= 0.07
-    assert s["median_m"] <= 0.010
-    assert s["p90_m"] <= 0.05
+    assert s["median_m"] <= 0.007
+    assert s["p90_m"] <= 0.036
     assert s["gross_unflagged"] <= 1
     assert s["within_2sigma"] >= 0.80
 
