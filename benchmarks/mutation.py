@@ -102,14 +102,23 @@ TESTS: dict[str, tuple[str, ...]] = {
         "tests/localize/test_ekf.py",
         "tests/localize/test_ekf_mutation.py",
     ),
+    "rangekit/ranging/tof.py": ("tests/ranging/test_ultrasonic.py",),
+    "rangekit/ranging/oneway.py": ("tests/ranging/test_ultrasonic.py",),
+    "rangekit/ranging/echo.py": ("tests/ranging/test_ultrasonic.py",),
+    "rangekit/ranging/ultrasonic.py": (
+        "tests/ranging/test_ultrasonic.py",
+        "tests/cli/test_ultrasonic_cli.py",
+    ),
 }
 
 #: Survivors judged equivalent mutants (the changed code gives the same result on every
 #: input the module can reach), per module: (the site's source line, stripped; the
 #: mutation) -> why. Keyed by the line's text, not its number, so an entry outlives edits
-#: elsewhere in the file and lapses when its line changes. The summary reports the score
-#: with these set apart beside the plain score (which counts them as survivors).
-EQUIVALENT: dict[str, dict[tuple[str, str], str]] = {
+#: elsewhere in the file and lapses when its line changes. Where a line has the same
+#: mutation at several places, a third element picks one: its index among them, left to
+#: right (:func:`site_key`). The summary reports the score with these set apart beside the
+#: plain score (which counts them as survivors).
+EQUIVALENT: dict[str, dict[tuple, str]] = {
     "rangekit/detect/condition.py": {
         ("low_pass_only = False", "False -> True"): "only `width` reads it, `tw` either way",
         ("low_pass_only = lo - tw <= 0.0", "<= -> <"):
@@ -126,8 +135,16 @@ EQUIVALENT: dict[str, dict[tuple[str, str], str]] = {
         ("if x.dtype not in (np.float32, np.float64):", "not in -> in"):
             "the same mask (float32 thresholds compare as float64 ones); only a copy saved",
     },
+    "rangekit/detect/matched.py": {
+        ("sp = np.asarray(spans, dtype=np.int64).reshape(-1, 2)", "1 -> 2"):
+            "numpy (2.4) reads any negative size as the unknown one: reshape(-2, 2) is (-1, 2)",
+        ("live = e > rel_zero * float(e.max()) if e.max() > 0 else np.zeros(len(e), bool)",
+         "> -> >=", 1): "at e.max() == 0 every e is 0: e > 0 is the same all-False mask",
+        ("if s1 - s0 < 3 or b - a < 3:", "- -> +", 0):
+            "a window under 3 samples has the empty span (s0, s0) (_window_spans): b - a < 3",
+    },
     "rangekit/physics.py": {
-        ("c: float = field(init=False, repr=False, compare=False)", "False -> True"):
+        ("c: float = field(init=False, repr=False, compare=False)", "False -> True", 2):
             "c is a function of the compared fields: the same equality and hash classes",
     },
     "rangekit/ranging/run.py": {
@@ -143,7 +160,7 @@ EQUIVALENT: dict[str, dict[tuple[str, str], str]] = {
         ('if hasattr(sd, "tolist") and getattr(sd, "ndim", 0) > 0:  # a numpy array',
          "> -> >="): "a 0-d array and its float pass the same checks",
         ('if hasattr(sd, "tolist") and getattr(sd, "ndim", 0) > 0:  # a numpy array',
-         "0 -> 1"): "only objects with tolist and no ndim (array.array), undocumented",
+         "0 -> 1", 0): "only objects with tolist and no ndim (array.array), undocumented",
         ("self_distances(sd, 1)", "1 -> 2"): "one value broadcast to 2 passes the same checks",
     },
 }  # fmt: skip
@@ -344,6 +361,15 @@ def check_module(
     return out
 
 
+def site_key(site: Site, lines: list[str], all_sites: list[Site]) -> tuple:
+    """``site``'s key in :data:`EQUIVALENT`: (its line's text, stripped; the mutation),
+    with a third element, the site's index left to right among the line's sites of the same
+    mutation, where the line has more than one."""
+    same = [s for s in all_sites if s.line == site.line and s.what == site.what]
+    key = (lines[site.line - 1].strip(), site.what)
+    return key if len(same) < 2 else (*key, sorted(same, key=lambda s: s.col).index(site))
+
+
 def summary(module: str, out: list[Outcome], n_sites: int, seed: int, rerun: bool = False) -> dict:
     valid = [o for o in out if o.status != "invalid"]
     killed = sum(o.status in ("killed", "timeout") for o in valid)
@@ -352,12 +378,15 @@ def summary(module: str, out: list[Outcome], n_sites: int, seed: int, rerun: boo
     print(f"{module}: killed {killed}/{len(valid)} = {100 * score:.0f} % "
           f"(timeouts {sum(o.status == 'timeout' for o in valid)}, invalid "
           f"{len(out) - len(valid)})")  # fmt: skip
-    lines = (ROOT / module).read_text(encoding="utf-8").splitlines()
+    source = (ROOT / module).read_text(encoding="utf-8")
+    lines = source.splitlines()
     known = EQUIVALENT.get(module, {})
+    all_sites = sites(source)
     n_eq = 0
     for s in surv:
         text = lines[s.line - 1].strip()
-        why = known.get((text, s.what))
+        key = site_key(s, lines, all_sites)
+        why = known.get(key)
         n_eq += why is not None
         tag = f" [equivalent: {why}]" if why else ""
         print(f"  survived: line {s.line}: {s.what}: {text}{tag}")

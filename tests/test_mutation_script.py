@@ -24,10 +24,23 @@ def test_equivalent_entries_name_live_sites():
         assert module in M.TESTS, module
         source = (ROOT / module).read_text(encoding="utf-8")
         lines = source.splitlines()
-        live = {(lines[s.line - 1].strip(), s.what) for s in M.sites(source)}
+        all_sites = M.sites(source)
+        live = {M.site_key(s, lines, all_sites) for s in all_sites}
         for key, why in entries.items():
-            assert key in live, (module, key)
+            assert key in live, (module, key)  # a 2-tuple only where the pair is unique
             assert why.strip(), (module, key)
+
+
+def test_a_repeated_mutation_on_one_line_is_keyed_by_its_place():
+    lines = ["x = a - b - c", "y = a - b"]
+    all_sites = M.sites("\n".join(lines))
+    minus = [s for s in all_sites if s.what == "- -> +"]
+    keys = [M.site_key(s, lines, all_sites) for s in minus]
+    assert sorted(keys) == [("x = a - b - c", "- -> +", 0), ("x = a - b - c", "- -> +", 1),
+                            ("y = a - b", "- -> +")]  # fmt: skip
+    # index 0 is the leftmost operator: (a - b) - c's inner one
+    first = next(s for s, k in zip(minus, keys, strict=True) if k[2:] == (0,))
+    assert first.col == min(s.col for s in minus if s.line == 1)
 
 
 def test_summary_sets_equivalent_survivors_apart():

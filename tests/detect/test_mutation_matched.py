@@ -391,3 +391,186 @@ def test_first_path_search_range_edges():
     assert M.first_path(_env(50, p0=1.0), noise=0.01).lag == 0.0
     assert M.first_path(_env(50, p20=1.0), noise=0.01, hi=3) is None
     assert M.first_path(_env(50, p20=0.04), noise=0.01) is None  # below k_detect noise
+
+
+def test_first_path_in_a_range_of_three_samples():
+    """Three samples are the fewest that hold a local maximum: that range is searched."""
+    env = _env(50, p20=1.0)
+    assert M.first_path(env, lo=19, hi=22, noise=0.01).lag == 20.0
+    assert M.first_path(env, lo=19, hi=21, noise=0.01) is None
+
+
+# ---------------------------------------------------------------- side lobes (CLEAN)
+
+
+def _response(m, **lobes):
+    """A centred self response of 2 m + 1 lags: 1 at lag 0, 0.5 at +-1, ``lobes`` (``l10=
+    0.4`` is lag +10, ``n10`` lag -10), zero elsewhere (so a path's response reaches
+    exactly m lags)."""
+    r = np.zeros(2 * m + 1, dtype=complex)
+    r[m], r[m - 1], r[m + 1] = 1.0, 0.5, 0.5
+    for k, v in lobes.items():
+        r[m + (int(k[1:]) if k[0] == "l" else -int(k[1:]))] = v
+    return r
+
+
+def _paths(n, r, **paths):
+    """``c`` of paths at integer lags (``p100=2.0``): the sum of their shifted responses."""
+    m = len(r) // 2
+    c = np.zeros(n, dtype=complex)
+    for k, a in paths.items():
+        j = int(k[1:])
+        lo, hi = max(0, j - m), min(n, j + m + 1)
+        c[lo:hi] += a * r[lo - j + m : hi - j + m]
+    return c
+
+
+def test_a_candidate_beyond_the_self_responses_reach_is_judged_as_without_it():
+    """The strongest path's side lobes reach m lags: a peak further before it is not
+    touched by the subtraction, so a peak at exactly 0.25 of the strongest is the first
+    path with the self response as without it."""
+    r = _response(10)
+    c = _paths(200, r, p100=1.0)
+    c[20] = 0.25
+    assert M.first_path(np.abs(c), noise=0.01).lag == 20.0
+    assert M.first_path(c, noise=0.01, self_response=r).lag == 20.0
+
+
+def test_side_lobes_of_a_stronger_path_at_the_first_sample_before_the_range_are_dropped():
+    """A path at sample 1 (the earliest that can be a local maximum) just before the search
+    range spreads a side lobe into it; the lobe is dropped, the true path kept."""
+    r = _response(20, l10=0.4)
+    c = _paths(200, r, p1=10.0, p60=2.0)
+    assert abs(c[11]) == pytest.approx(4.0)  # the side lobe, stronger than the path at 60
+    assert M.first_path(np.abs(c), lo=2, noise=0.01).lag == 11.0  # without: the lobe
+    assert M.first_path(c, lo=2, noise=0.01, self_response=r).lag == 60.0
+    # the same after the range: a path at the last sample that has a right neighbour,
+    # whose leading lobe is the strongest peak in the range (a weak true path at 40)
+    r2 = _response(20, n10=0.4)
+    c = _paths(200, r2, p40=0.5, p198=10.0)
+    assert M.first_path(np.abs(c), hi=197, noise=0.01).lag == 188.0
+    assert M.first_path(c, hi=197, noise=0.01, self_response=r2).lag == 40.0
+
+
+def test_clean_of_two_paths_removes_a_side_lobe_of_a_later_weaker_path():
+    """n_paths=2 (Högbom's CLEAN): a peak that is only the leading side lobe of a later
+    path (not the strongest) is passed over; the later path is the first path."""
+    r = _response(12, n10=0.6)
+    c = _paths(200, r, p100=1.0, p130=2.0)
+    assert abs(c[90]) == pytest.approx(0.6) and abs(c[120]) == pytest.approx(1.2)
+    one = M.first_path(c, noise=0.01, self_response=r)
+    assert one.lag == 90.0 and one.strongest_lag == 130.0  # the strongest's lobes only
+    two = M.first_path(c, noise=0.01, self_response=r, n_paths=2)
+    assert two.lag == 100.0 and two.strongest_lag == 130.0
+    # a real path at 90 (twice the lobe) still clears
+    c[90] += 0.6
+    assert M.first_path(c, noise=0.01, self_response=r, n_paths=2).lag == 90.0
+
+
+# ---------------------------------------------------------------- crb_delay_s
+
+
+@pytest.mark.parametrize("fs", [1000.0, 192000.0])
+def test_crb_is_the_fisher_bound_with_scipys_analytic_signal(fs):
+    """Amplitude and carrier phase unknown: [J^-1]_tt of the 3x3 Fisher matrix whose phase
+    derivative is -Im of scipy's analytic signal (zero-padded as the code pads), at any
+    rate, down to the bins below 1 Hz of a low-pass signal at 1 kHz."""
+    from scipy.signal import hilbert
+
+    rng = np.random.default_rng(11)
+    s = np.convolve(rng.standard_normal(2000), np.hanning(40), mode="same") * np.hanning(2000)
+    sigma = 0.3
+    n = 1 << int(math.ceil(math.log2(4 * len(s) + 8)))
+    f = np.fft.fftfreq(n, 1.0 / fs)
+    ds = np.fft.ifft(-2j * math.pi * f * np.fft.fft(s, n)).real
+    sp = np.pad(s, (0, n - len(s)))
+    d = np.stack([ds, sp, -np.imag(hilbert(sp))])
+    want = math.sqrt(np.linalg.inv(d @ d.T / sigma**2)[0, 0])
+    assert M.crb_delay_s(s, fs=fs, noise_sigma=sigma) == pytest.approx(want, rel=1e-6)
+
+
+# ---------------------------------------------------------------- detect_matched windows
+
+FS_US = 192000.0
+
+
+def _far_search_recording(seed, paths, n=40000, sigma=0.01):
+    """``sigma`` white noise and copies of the bare Barker drive at ``paths`` {lag: height
+    in envelope noise scales}."""
+    h = M.coded_template(fs=FS_US)
+    e = M.matched_filter(h).energy
+    x = sigma * np.random.default_rng(seed).standard_normal(n)
+    for lag, k in paths.items():
+        x[lag : lag + len(h)] += k * sigma / math.sqrt(e) * h
+    return x, h
+
+
+def test_window_spans_are_widened_to_the_noise_span_within_the_window():
+    """A span holds the search range and the self response's reach either side, within its
+    window, widened to NOISE_MIN_SPAN lags where the window has room (and not beyond)."""
+    n, m, pad = 100000, 500, M._SPAN_PAD
+    win = np.array([[0, n], [1000, 4000], [50000, 90000], [0, 2]])
+    for lo, hi in ((20000, 21000), (0, 300), (30000, 39000), (100, 20000)):
+        spans = M._window_spans(win, n, lo, hi, m)
+        for (s0, s1), (a, b) in zip(win, spans, strict=True):
+            if s1 - s0 < 3:
+                assert a == b == s0
+                continue
+            need_a, need_b = max(s0, s0 + lo - m - pad), min(s1, s0 + hi + m + pad)
+            assert s0 <= a <= b <= s1
+            if need_a < need_b:
+                assert a <= need_a and b >= need_b
+            assert b - a == max(min(s1 - s0, M.NOISE_MIN_SPAN), need_b - need_a)
+
+
+def test_a_path_after_a_far_search_range_is_not_found():
+    """The search range far into a window (its span starts after the window's): a path
+    500 samples after the range's end is outside it, though in the correlated span."""
+    x, h = _far_search_recording(0, {21500: 30.0})
+    assert len(M.detect_matched(x, fs=FS_US, template=h, search=(20000, 21000))) == 0
+    a = M.detect_matched(x, fs=FS_US, template=h, search=(20000, 22000))
+    assert a.onset[0] == pytest.approx(21500.0, abs=0.2)
+
+
+def test_ambiguous_first_path_far_into_the_window():
+    """A weaker earlier path (10 noise scales: above the midpoint 8.25 of k_detect 4.5 and
+    k_noise 12, below the first-path threshold) before the chosen one flags it ambiguous;
+    without it, noise peaks above rel_threshold of the path (2 of 8 noise scales, dozens
+    of them measured) do not."""
+    x, h = _far_search_recording(0, {20500: 10.0, 23500: 30.0})
+    a = M.detect_matched(x, fs=FS_US, template=h, search=(20000, 24000), k_noise=12.0)
+    assert a.onset[0] == pytest.approx(23500.0, abs=0.3)
+    assert "ambiguous_first_path" in a.flag_names(0)
+    x, h = _far_search_recording(0, {23500: 8.0})
+    a = M.detect_matched(x, fs=FS_US, template=h, search=(20000, 24000))
+    assert a.onset[0] == pytest.approx(23500.0, abs=1.0)
+    assert a.flag_names(0) == ("low_snr",)  # 8 < LOW_SNR_FACTOR x k_detect = 13.5
+
+
+def test_pooled_transducer_fit_holds_the_groups_estimate():
+    """With a model, the fourth and later arrivals of a group are fitted at the group's
+    pooled (Q, f0) (N_FREE_FITS = 3 free fits first): six windows of the Q 4 template at
+    0.2 % noise are timed within 3 sigma (measured |z| <= 1.6) with 0.63x the sigma of
+    fits on their own (pool=False)."""
+    from rangekit.detect.fitted import transducer_models
+    from rangekit.signals.barker import CodedBurst
+    from rangekit.signals.transducer import Transducer
+
+    t = Transducer()
+    h = M.coded_template(fs=FS_US, tx=t, rx=t)
+    models, _ = transducer_models(CodedBurst(), fs=FS_US, transducers=(t, t))
+    w_len, lags = 6000, 1000 + 37 * np.arange(6)
+    x = np.zeros(w_len * len(lags))
+    for w, lag in enumerate(lags):
+        x[w * w_len + lag : w * w_len + lag + len(h)] += h
+    x += 0.002 * np.abs(h).max() * np.random.default_rng(0).standard_normal(len(x))
+    win = np.stack([np.arange(6) * w_len, np.arange(1, 7) * w_len], axis=1)
+    got = {}
+    for pool in (True, False):
+        a = M.detect_matched(x, fs=FS_US, template=h, windows=win, model=models[0], pool=pool)
+        assert a.window.tolist() == list(range(6)) and not a.flags.any()
+        got[pool] = a
+    z = (got[True].onset - win[:, 0] - lags) / got[True].sigma
+    assert np.all(np.abs(z) < 3.0)
+    ratio = got[True].sigma.mean() / got[False].sigma.mean()
+    assert 0.5 < ratio < 0.75
