@@ -2,10 +2,11 @@
 
 Split by concern (each module parses options only; defaults and checks are the
 library's): :mod:`rangekit_cli._options_types` (parameter types, help-text helpers,
-``float_list``), :mod:`rangekit_cli._options_output` (``-o``, ``--format``, ``-q/-v``,
-``--debug``, stderr notes and progress), :mod:`rangekit_cli._options_signal` (beep,
-probe and detector options) and :mod:`rangekit_cli._options_setup` (air, transducer,
-self-distance and clock options). This module re-exports them.
+``float_list``, ``number_option``), :mod:`rangekit_cli._options_output` (``-o``,
+``--format``, ``--debug``, writing the results), :mod:`rangekit_cli._options_verbosity`
+(``-q/-v``, stderr notes and progress), :mod:`rangekit_cli._options_signal` (beep, coded
+burst, probe and detector options) and :mod:`rangekit_cli._options_setup` (air,
+transducer, self-distance, clock and calibration options). This module re-exports them.
 """
 
 from __future__ import annotations
@@ -18,5 +19,7 @@ from rangekit_cli._options_signal import *  # noqa: F403
 from rangekit_cli._options_signal import __all__ as _signal
 from rangekit_cli._options_types import *  # noqa: F403
 from rangekit_cli._options_types import __all__ as _types
+from rangekit_cli._options_verbosity import *  # noqa: F403
+from rangekit_cli._options_verbosity import __all__ as _verbosity
 
-__all__ = [*_types, *_output, *_signal, *_setup]
+__all__ = [*_types, *_output, *_verbosity, *_signal, *_setup]

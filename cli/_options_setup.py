@@ -1,17 +1,21 @@
 """Options that describe the measurement setup: the air (temperature, speed of sound), the
-transducers (``--transducer-q``), the self-distances and the clock tolerance. Each
-defaults to the library's value (read when it is used or shown, never copied)."""
+transducers (``--transducer-q``), the self-distances, the clock tolerance and a
+calibration (``--calibration``, read and checked against the scheme). Each defaults to
+the library's value (read when it is used or shown, never copied)."""
 
 from __future__ import annotations
 
 import functools
 
 import click
-from rangekit_cli._options_output import warn
 from rangekit_cli._options_types import FiniteRange, LazyHelpOption, shown_default
+from rangekit_cli._options_verbosity import warn
 
 __all__ = [
+    "calibration_option",
     "clock_ppm_option",
+    "read_calibration",
+    "refuse_self_distance",
     "self_distance_option",
     "speed_of_sound_option",
     "temperature_option",
@@ -121,3 +125,35 @@ def clock_ppm_option(help: str):
         show_default=True,
         help=help,
     )
+
+
+calibration_option = click.option(
+    "--calibration",
+    type=click.Path(dir_okay=False),
+    default=None,
+    metavar="CAL.json",
+    help="Apply a calibration from `rangekit calibrate` (beepbeep, oneway): its offset "
+    "replaces --self-distance (--latency for oneway), its fitted speed of sound, if any, "
+    "replaces --temperature.",
+)
+
+
+def refuse_self_distance(sd) -> None:
+    """Usage error for --self-distance given with --calibration (None: not given)."""
+    if sd is not None and any(v != 0 for v in sd):
+        raise click.UsageError(
+            "give --self-distance or --calibration, not both: the calibration's offset "
+            "already holds the speaker-to-microphone distances"
+        )
+
+
+def read_calibration(path, scheme: str):
+    """The calibration of ``--calibration`` (None without it), checked against the scheme."""
+    if path is None:
+        return None
+    from rangekit.ranging.calibration import read_calibration as read
+
+    cal = read(path)
+    if cal.scheme != scheme:
+        raise click.UsageError(f"'{path}' is a calibration for --scheme {cal.scheme}, not {scheme}")
+    return cal

@@ -1,5 +1,7 @@
-"""Options that describe the signal played: the beep (its options, refused with a probe)
-or the probe file of ``--template``, and the arrival detector."""
+"""Options that describe the signal played: the beep (its options, refused with a probe),
+the coded burst of the ultrasonic schemes (``--code``, ``--carrier``, ``--cycles-per-bit``
+as a :class:`~rangekit.signals.barker.CodedBurst`), or the probe file of ``--template``,
+and the arrival detector."""
 
 from __future__ import annotations
 
@@ -14,6 +16,7 @@ __all__ = [
     "load_template",
     "make_beep",
     "make_burst",
+    "parse_code",
     "refuse_beep_options",
     "template_option",
 ]
@@ -123,11 +126,33 @@ def make_beep(kw: dict, *, amplitude: float | None = None):
     return Beep(**args)
 
 
-def make_burst(kw: dict, *, scheme: str):
-    """:func:`rangekit_cli.ultrasonic_options.make_burst` (kept here for ``design``)."""
-    from rangekit_cli.ultrasonic_options import make_burst as make
+def parse_code(code: str | None):
+    """``--code`` (a Barker length or chips as + and -) as chips, None when not given
+    (:func:`rangekit.signals.codes.parse_code`); a bad text is a usage error naming it."""
+    if code is None:
+        return None
+    from rangekit.errors import InvalidParameterError
+    from rangekit.signals.codes import parse_code as parse
 
-    return make(kw, scheme=scheme)
+    try:
+        return parse(code)
+    except InvalidParameterError as e:
+        raise click.BadParameter(str(e), param_hint="--code") from None
+
+
+def make_burst(kw: dict, *, scheme: str):
+    """The CodedBurst of ``scheme`` (the library's) with ``--code``, ``--carrier`` and
+    ``--cycles-per-bit`` from ``kw`` applied
+    (:func:`rangekit.ranging.ultrasonic_setup.scheme_burst`); its rate is 10 MHz (replaced
+    by each file's: this only defers the Nyquist check to the file)."""
+    from rangekit.ranging.ultrasonic_setup import scheme_burst
+
+    return scheme_burst(
+        scheme,
+        code=parse_code(kw.get("code")),
+        carrier_hz=kw.get("carrier"),
+        cycles_per_bit=kw.get("cycles_per_bit"),
+    )
 
 
 def detector_option(f):

@@ -12,6 +12,8 @@ __all__ = [
     "QOrAuto",
     "doc_page",
     "float_list",
+    "id_list",
+    "number_option",
     "shown_default",
 ]
 
@@ -83,6 +85,24 @@ class LazyHelpOption(click.Option):
             self.default = lazy
 
 
+def number_option(
+    *decls: str,
+    lo: float | None,
+    hi: float | None,
+    metavar: str,
+    min_open: bool = False,
+    **kw,
+):
+    """A ``click.option`` taking one finite number in [lo, hi] (:class:`FiniteRange`;
+    ``min_open``: lo itself refused; None: no bound), shown as ``metavar``.
+
+    The default is None (not given: the library's default applies) unless ``kw`` gives
+    one; every other keyword (``help``, ``show_default``, ``cls``, ...) is click's.
+    """
+    kw.setdefault("default", None)
+    return click.option(*decls, type=FiniteRange(lo, hi, min_open=min_open), metavar=metavar, **kw)
+
+
 def float_list(
     text: str | None, *, name: str, lo: float = -math.inf, hi: float = math.inf
 ) -> list[float] | None:
@@ -101,3 +121,13 @@ def float_list(
         if not (math.isfinite(v) and lo <= v <= hi):
             raise click.BadParameter(f"{v:g} is not within [{lo:g}, {hi:g}]", param_hint=name)
     return vals
+
+
+def id_list(text: str | None, *, name: str) -> tuple[int, ...] | None:
+    """Parse "4" or "0,1,2" into whole numbers in [0, 1e6] (ids); usage errors name the option."""
+    vals = float_list(text, name=name, lo=0, hi=1e6)
+    if vals is None:
+        return None
+    if any(v != int(v) for v in vals):
+        raise click.BadParameter("ids must be whole numbers", param_hint=name)
+    return tuple(int(v) for v in vals)

@@ -3,7 +3,16 @@
 from __future__ import annotations
 
 import click
-from rangekit_cli._options import check_outputs, detail, float_list
+from rangekit_cli._options import (
+    FiniteRange,
+    check_outputs,
+    debug_option,
+    detail,
+    float_list,
+    temperature_option,
+    transducer_q_options,
+    verbosity_options,
+)
 
 
 def _impair_spec(ctx, param, value):
@@ -57,3 +66,37 @@ def parse_pose(text: str, name: str = "--pose") -> list[float]:
     if v is None or len(v) != 3:
         raise click.BadParameter(f"{text!r} must be X,Y,HEADING (m, m, degrees)", param_hint=name)
     return v
+
+
+def ultrasonic_synth_options(f):
+    """--temperature, --transducer-q, --fs, --seed, -o, -q/-v and --debug of the ultrasonic
+    synth commands."""
+    opts = [
+        transducer_q_options(
+            FiniteRange(0.5, 100.0),
+            4.0,
+            "Q of the transducers (Tx and Rx; the echo sensor has one).",
+        ),
+        click.option(
+            "--fs",
+            type=FiniteRange(1000.0, 1e7),
+            default=192000.0,
+            show_default=True,
+            help="Sample rate, Hz.",
+        ),
+        click.option(
+            "--seed", type=click.IntRange(0, 2**63 - 1), default=None, help="Random seed, >= 0."
+        ),
+        click.option("--no-noise", is_flag=True, help="Render without noise."),
+        impair_option,
+        click.option(
+            "-o",
+            "--output",
+            type=click.Path(dir_okay=False),
+            required=True,
+            help="WAV file to write.",
+        ),
+    ]
+    for o in reversed(opts):
+        f = o(f)
+    return verbosity_options(debug_option(temperature_option(f)))

@@ -7,6 +7,7 @@ import os
 import click
 from rangekit_cli._options import (
     beep_options,
+    calibration_option,
     clock_ppm_option,
     debug_option,
     detector_option,
@@ -17,7 +18,6 @@ from rangekit_cli._options import (
     verbosity_options,
 )
 from rangekit_cli.batch_setup import batch_options, details
-from rangekit_cli.range_cmd import calibration_option
 from rangekit_cli.ultrasonic_options import ultrasonic_options
 
 #: Exit codes of ``rangekit batch`` beyond the common ones (docs/cli.md).

@@ -78,8 +78,7 @@ def _probe_and_calibration(template, calibration, scheme, sd, kw, beepbeep, setu
     """Put ``--template`` and ``--calibration`` into the sessions' ranging options:
     into ``beepbeep`` (a dict), and the :class:`rangekit.batch.UltrasonicOptions` of each
     ultrasonic scheme from its ``setups`` (returned, by scheme)."""
-    from rangekit_cli._options import load_template
-    from rangekit_cli.range_cmd import _read_calibration, _refuse_self_distance
+    from rangekit_cli._options import load_template, read_calibration, refuse_self_distance
 
     from rangekit.batch import UltrasonicOptions
 
@@ -91,10 +90,10 @@ def _probe_and_calibration(template, calibration, scheme, sd, kw, beepbeep, setu
             if s != scheme or kw.get("channels") is None:
                 v = replace(v, channels=None)  # a lab's probe: any number of receivers
             ultra[s] = UltrasonicOptions(setup=v, probe=probe)
-    cal = _read_calibration(calibration, scheme)
+    cal = read_calibration(calibration, scheme)
     if cal is not None:
         if scheme == "beepbeep":
-            _refuse_self_distance(sd)
+            refuse_self_distance(sd)
             beepbeep["calibration"] = cal
         else:
             ultra[scheme] = replace(ultra[scheme], calibration=cal)

@@ -18,7 +18,11 @@ from rangekit_cli._options import (
     template_option,
     verbosity_options,
 )
-from rangekit_cli.ultrasonic_options import ultrasonic_options, ultrasonic_setup
+from rangekit_cli.ultrasonic_options import (
+    refuse_ultrasonic_options,
+    ultrasonic_options,
+    ultrasonic_setup,
+)
 
 
 def parse_recording(text: str, default_m: float | None) -> tuple[list[str], float]:
@@ -141,9 +145,7 @@ def calibrate_cmd(
     sig = f"template '{template}'" if probe is not None else f"detector {detector}"
     detail(f"rangekit: calibrate: {scheme}, {sig}, {len(recs)} recordings, c = {c:.2f} m/s")
     if scheme == "beepbeep":
-        from rangekit_cli.range_cmd import _refuse_ultrasonic_options
-
-        _refuse_ultrasonic_options(kw)
+        refuse_ultrasonic_options(kw)
         if probe is not None:
             refuse_beep_options(kw)
         args = {"beep": make_beep(kw), "detector": detector}

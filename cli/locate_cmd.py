@@ -6,11 +6,11 @@ import math
 
 import click
 from rangekit_cli._options import (
-    FiniteRange,
     debug_option,
     detail,
     emit,
     format_option,
+    number_option,
     output_option,
     verbosity_options,
     warn,
@@ -50,10 +50,11 @@ SIGMA_FIELDS = ("sigma_x_m", "sigma_y_m", "sigma_heading_deg")
     "and the median sigma, which gives the pose's sigma; - reads standard input (JSON when "
     "it starts with {).",
 )
-@click.option(
+@number_option(
     "--sigma",
-    type=FiniteRange(0.0, None, min_open=True),
-    default=None,
+    lo=0.0,
+    hi=None,
+    min_open=True,
     metavar="M",
     help="1-sigma of every distance of --distances or --tx, m: adds the pose's sigma.",
 )
@@ -73,20 +74,23 @@ SIGMA_FIELDS = ("sigma_x_m", "sigma_y_m", "sigma_heading_deg")
     help="Position by the direct method, the indirect method using ranges, or the hybrid "
     "rule of Kim & Kim 2013 Table I.",
 )
-@click.option(
+@number_option(
     "--d-th",
     "d_th",
-    type=FiniteRange(0.0, None),
+    lo=0.0,
+    hi=None,
     default=0.2,
     show_default=True,
     metavar="M",
     help="Hybrid threshold, m: with collinear transmitters, the direct position is kept "
     "within this distance of their line.",
 )
-@click.option(
+@number_option(
     "--r-r",
     "r_r",
-    type=FiniteRange(0.0, None, min_open=True),
+    lo=0.0,
+    hi=None,
+    min_open=True,
     default=0.19,
     show_default=True,
     metavar="M",

@@ -15,29 +15,23 @@ from rangekit_cli._options import (
     make_beep,
     note,
     progress,
+    read_calibration,
     refuse_beep_options,
+    refuse_self_distance,
     warn,
 )
 from rangekit_cli.range_options import (
-    calibration_option,
     check_series_options,
     check_template_options,
     describe,
     range_options,
-    read_calibration,
-    refuse_self_distance,
-    refuse_ultrasonic_options,
 )
 from rangekit_cli.range_setup import apply_setup
-from rangekit_cli.ultrasonic_options import ultrasonic_setup
+from rangekit_cli.ultrasonic_options import refuse_ultrasonic_options, ultrasonic_setup
 
 from rangekit.io.stream import RowWriter
 
-# Names other commands import from here (batch, calibrate).
-_read_calibration = read_calibration
-_refuse_self_distance = refuse_self_distance
-_refuse_ultrasonic_options = refuse_ultrasonic_options
-__all__ = ["EXIT_BROKEN_PIPE", "calibration_option", "range_cmd"]
+__all__ = ["EXIT_BROKEN_PIPE", "range_cmd"]
 
 #: Exit code when stdout is closed early by its reader (128 + SIGPIPE).
 EXIT_BROKEN_PIPE = 141

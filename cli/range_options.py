@@ -10,15 +10,16 @@ from __future__ import annotations
 
 import click
 from rangekit_cli._options import (
-    FiniteRange,
     LazyHelpOption,
     beep_options,
+    calibration_option,
     clock_ppm_option,
     debug_option,
     detail,
     detector_option,
     format_option,
     is_verbose,
+    number_option,
     output_option,
     self_distance_option,
     shown_default,
@@ -28,16 +29,6 @@ from rangekit_cli._options import (
     verbosity_options,
 )
 from rangekit_cli.ultrasonic_options import ultrasonic_options
-
-calibration_option = click.option(
-    "--calibration",
-    type=click.Path(dir_okay=False),
-    default=None,
-    metavar="CAL.json",
-    help="Apply a calibration from `rangekit calibrate` (beepbeep, oneway): its offset "
-    "replaces --self-distance (--latency for oneway), its fitted speed of sound, if any, "
-    "replaces --temperature.",
-)
 
 
 def _series_default(name: str):
@@ -75,28 +66,28 @@ _OPTIONS = (
         help="Long recordings: range block by block with bounded memory and print a time series "
         "(t_s first); CSV rows are written as they are produced.",
     ),
-    click.option(
+    number_option(
         "--block",
         "block_s",
-        type=FiniteRange(0.001, 1e6),
-        default=None,
+        lo=0.001,
+        hi=1e6,
         metavar="S",
         help="--series: block length in seconds [default: 2^21 samples over all channels].",
     ),
-    click.option(
+    number_option(
         "--exchange",
         "exchange_s",
-        type=FiniteRange(0.001, 3600.0),
-        default=None,
+        lo=0.001,
+        hi=3600.0,
         metavar="S",
         help="--series beepbeep: longest time from device 0's beep to the last device's beep "
         "of one exchange [default: (N-1) x (beep duration + 0.5 s)].",
     ),
-    click.option(
+    number_option(
         "--skew",
         "skew_s",
-        type=FiniteRange(0.0, 3600.0),
-        default=None,
+        lo=0.0,
+        hi=3600.0,
         metavar="S",
         cls=LazyHelpOption,
         lazy_help=lambda: (
@@ -198,20 +189,6 @@ def _source_is_commandline(name: str) -> bool:
     return src == click.core.ParameterSource.COMMANDLINE
 
 
-_ULTRASONIC_KEYS = (
-    "latency",
-    "period",
-    "tx_order",
-    "channels",
-    "min_range",
-    "max_range",
-    "q",
-    "code",
-    "carrier",
-    "cycles_per_bit",
-)
-
-
 def describe(scheme, detector, template, calibration, self_distance, temp_c, speed) -> None:
     """--verbose: one stderr line with what the run uses."""
     if not is_verbose():
@@ -227,32 +204,3 @@ def describe(scheme, detector, template, calibration, self_distance, temp_c, spe
         self_distance = f"{TwoWaySetup().self_distance_m:g}"
     sd = f", self-distance {self_distance}" if scheme == "beepbeep" else ""
     detail(f"rangekit: range: scheme {scheme}, {what}, {air}{sd}{cal}")
-
-
-def refuse_ultrasonic_options(kw: dict) -> None:
-    """Usage error for a one-way / echo option given with the two-way scheme."""
-    for k in _ULTRASONIC_KEYS:
-        if kw.pop(k, None) is not None:
-            opt = "--" + k.replace("_", "-")
-            raise click.UsageError(f"{opt} applies to --scheme oneway and echo only")
-
-
-def refuse_self_distance(sd) -> None:
-    """Usage error for --self-distance given with --calibration (None: not given)."""
-    if sd is not None and any(v != 0 for v in sd):
-        raise click.UsageError(
-            "give --self-distance or --calibration, not both: the calibration's offset "
-            "already holds the speaker-to-microphone distances"
-        )
-
-
-def read_calibration(path, scheme: str):
-    """The calibration of ``--calibration`` (None without it), checked against the scheme."""
-    if path is None:
-        return None
-    from rangekit.ranging.calibration import read_calibration as read
-
-    cal = read(path)
-    if cal.scheme != scheme:
-        raise click.UsageError(f"'{path}' is a calibration for --scheme {cal.scheme}, not {scheme}")
-    return cal

@@ -5,50 +5,14 @@ from __future__ import annotations
 from pathlib import Path
 
 import click
-from rangekit_cli._options import (
-    FiniteRange,
-    debug_option,
-    float_list,
-    note,
-    temperature_option,
-    transducer_q_options,
-    verbosity_options,
+from rangekit_cli._options import FiniteRange, float_list, note
+from rangekit_cli._synth_options import (
+    describe_seed,
+    parse_point,
+    parse_pose,
+    ultrasonic_synth_options,
+    write,
 )
-from rangekit_cli._synth_options import describe_seed, impair_option, parse_point, parse_pose, write
-
-
-def _ultrasonic_synth_options(f):
-    """--temperature, --transducer-q, --fs, --seed, -o, -q/-v and --debug of the ultrasonic
-    synth commands."""
-    opts = [
-        transducer_q_options(
-            FiniteRange(0.5, 100.0),
-            4.0,
-            "Q of the transducers (Tx and Rx; the echo sensor has one).",
-        ),
-        click.option(
-            "--fs",
-            type=FiniteRange(1000.0, 1e7),
-            default=192000.0,
-            show_default=True,
-            help="Sample rate, Hz.",
-        ),
-        click.option(
-            "--seed", type=click.IntRange(0, 2**63 - 1), default=None, help="Random seed, >= 0."
-        ),
-        click.option("--no-noise", is_flag=True, help="Render without noise."),
-        impair_option,
-        click.option(
-            "-o",
-            "--output",
-            type=click.Path(dir_okay=False),
-            required=True,
-            help="WAV file to write.",
-        ),
-    ]
-    for o in reversed(opts):
-        f = o(f)
-    return verbosity_options(debug_option(temperature_option(f)))
 
 
 @click.command("oneway")
@@ -133,7 +97,7 @@ def _ultrasonic_synth_options(f):
     metavar="DELAY_MS,GAIN",
     help="An extra path for every arrival: DELAY_MS after the direct one, GAIN times it (repeat).",
 )
-@_ultrasonic_synth_options
+@ultrasonic_synth_options
 def synth_oneway(
     txs, ceiling, pose, radius, n_windows, period, latency, snr_db, no_noise, room, absorption,
     order, reflections, temp_c, q, fs, seed, impairments, output,
@@ -157,7 +121,7 @@ def synth_oneway(
     import math
 
     from rangekit.sim import ShoeboxRoom
-    from rangekit.sim.scenarios import DEFAULT_TXS, synth_oneway
+    from rangekit.sim.scenarios import synth_oneway
 
     pts = []
     for t in txs:
@@ -177,15 +141,17 @@ def synth_oneway(
                 f"{r!r} must be DELAY_MS,GAIN (> 0)", param_hint="--reflection"
             )
         extra.append((v[0] * 1e-3, v[1]))
+    given = {"txs_m": pts} if pts else {}  # else the library's six transmitters
     syn = synth_oneway(
-        txs_m=pts or DEFAULT_TXS, ceiling_m=ceiling, pose=(px, py, math.radians(deg)),
-        radius_m=radius, n_windows=n_windows, period_s=period, latency_s=latency,
+        ceiling_m=ceiling, pose=(px, py, math.radians(deg)), radius_m=radius,
+        n_windows=n_windows, period_s=period, latency_s=latency,
         snr_db=None if no_noise else snr_db, room=room_obj, extra_paths=extra, temp_c=temp_c,
-        q=q, fs=fs, seed=seed, impairments=impairments, name=output,
+        q=q, fs=fs, seed=seed, impairments=impairments, name=output, **given,
     )  # fmt: skip
     write(syn, output)
     describe_seed(seed)
-    out, truth, n_tx = Path(output), syn.sidecar(output), len(pts or DEFAULT_TXS)
+    out, truth = Path(output), syn.sidecar(output)
+    n_tx = len(truth["setup"]["tx_order"])  # the transmitters fired, ids 0..n_tx - 1
     note(
         f"wrote {out.name} ({len(truth['windows'])} windows x {syn.recordings[0].shape[1]} "
         f"receivers), {out.with_suffix('.json').name} and {truth['beacons']} (Tx ids "
@@ -224,7 +190,7 @@ def synth_oneway(
     show_default=True,
     help="In-band SNR of an on-axis echo at the 6 m maximum range, dB.",
 )
-@_ultrasonic_synth_options
+@ultrasonic_synth_options
 def synth_echo(map_path, poses, mount, snr_db, no_noise, temp_c, q, fs, seed, impairments, output):
     """SRF02 echo recording in a floor plan: one 70 ms ranging cycle per --pose.
 

@@ -1,15 +1,15 @@
 """The options of the ultrasonic schemes (oneway, echo) and their configuration objects.
 
-Every option defaults to None: :func:`ultrasonic_setup` passes only what was given to
-:class:`~rangekit.ranging.config.OneWaySetup` or :class:`~rangekit.ranging.config.EchoSetup`,
-whose defaults are the library's (the help texts read them there too). Used by ``range``,
-``batch``, ``plot matched`` and ``calibrate``.
+Every option defaults to None: :func:`ultrasonic_setup` parses the options given and
+passes them to :func:`rangekit.ranging.ultrasonic_setup.ultrasonic_setup`, which builds
+:class:`~rangekit.ranging.config.OneWaySetup` or :class:`~rangekit.ranging.config.EchoSetup`
+with the library's defaults for the rest (the help texts read them there too). Used by
+``range``, ``batch``, ``plot matched`` and ``calibrate``.
 """
 
 from __future__ import annotations
 
 import functools
-from dataclasses import replace
 from typing import TYPE_CHECKING
 
 import click
@@ -18,7 +18,9 @@ from rangekit_cli._options import (
     FiniteRange,
     LazyHelpOption,
     QOrAuto,
-    float_list,
+    id_list,
+    number_option,
+    parse_code,
     shown_default,
     transducer_q_options,
 )
@@ -42,14 +44,6 @@ def _help(make):
     return {"cls": LazyHelpOption, "lazy_help": lambda: make(*_defaults())}
 
 
-def _chips(code: tuple[int, ...]) -> str:
-    """A code as the ``--code`` text: its Barker length, or its chips as + and -."""
-    from rangekit.signals.barker import BARKER_CODES
-
-    n = next((k for k, v in BARKER_CODES.items() if v == tuple(code) and k > 1), None)
-    return str(n) if n is not None else "".join("+" if c > 0 else "-" for c in code)
-
-
 def _both(ow, ec) -> str:
     """``[default: oneway: A; echo: B]`` (one value when both schemes agree)."""
     if ow == ec:
@@ -64,10 +58,10 @@ def _m(v: float) -> str:
 def ultrasonic_options(f):
     """Options of the ultrasonic schemes (oneway, echo) of ``rangekit range``."""
     opts = [
-        click.option(
+        number_option(
             "--latency",
-            type=FiniteRange(0.0, 10.0),
-            default=None,
+            lo=0.0,
+            hi=10.0,
             metavar="S",
             **_help(
                 lambda ow, ec: (
@@ -76,10 +70,10 @@ def ultrasonic_options(f):
                 )
             ),
         ),
-        click.option(
+        number_option(
             "--period",
-            type=FiniteRange(1e-4, 3600.0),
-            default=None,
+            lo=1e-4,
+            hi=3600.0,
             metavar="S",
             help="oneway/echo: the file holds consecutive windows of this length, s "
             "(0.2 for 5 Hz beacons, 0.07 for SRF02 cycles) [default: one window].",
@@ -102,11 +96,11 @@ def ultrasonic_options(f):
                 )
             ),
         ),
-        click.option(
+        number_option(
             "--min-range",
             "min_range",
-            type=FiniteRange(0.0, 1000.0),
-            default=None,
+            lo=0.0,
+            hi=1000.0,
             metavar="M",
             **_help(
                 lambda ow, ec: (
@@ -115,11 +109,11 @@ def ultrasonic_options(f):
                 )
             ),
         ),
-        click.option(
+        number_option(
             "--max-range",
             "max_range",
-            type=FiniteRange(0.01, 1000.0),
-            default=None,
+            lo=0.01,
+            hi=1000.0,
             metavar="M",
             **_help(
                 lambda ow, ec: (
@@ -140,7 +134,7 @@ def ultrasonic_options(f):
             **_help(
                 lambda ow, ec: (
                     "Emitted code: a Barker length (2,3,4,5,7,11,13) or chips as "
-                    f"+ and - {_both(_chips(ow.burst.code), _chips(ec.burst.code))}."
+                    f"+ and - {_both(_code_text(ow.burst.code), _code_text(ec.burst.code))}."
                 )
             ),
         ),
@@ -181,38 +175,38 @@ def _q_help(ow, ec) -> str:
     )
 
 
-def make_burst(kw: dict, *, scheme: str):
-    """The CodedBurst of ``scheme`` (the library's) with ``--code``, ``--carrier`` and
-    ``--cycles-per-bit`` from ``kw`` applied; its rate is 10 MHz (replaced by each file's:
-    this only defers the Nyquist check to the file)."""
-    from rangekit.signals.barker import BARKER_CODES
+def _code_text(code) -> str:
+    """A code as the ``--code`` text (:func:`rangekit.signals.codes.code_text`)."""
+    from rangekit.signals.codes import code_text
 
-    base = _defaults()[scheme == "echo"].burst
-    code = kw.get("code")
-    chips = base.code
-    if code is None:
-        pass
-    elif code.strip().isdigit():
-        n = int(code)
-        if n not in BARKER_CODES:
-            raise click.BadParameter(
-                f"no Barker code of length {n} (lengths: "
-                f"{', '.join(str(k) for k in BARKER_CODES)})",
-                param_hint="--code",
-            )
-        chips = BARKER_CODES[n]
-    elif code and set(code) <= {"+", "-"}:
-        chips = tuple(1 if ch == "+" else -1 for ch in code)
-    else:
-        raise click.BadParameter(
-            f"{code!r} must be a Barker length or a string of + and -", param_hint="--code"
-        )
-    given = {"carrier_hz": kw.get("carrier"), "cycles_per_bit": kw.get("cycles_per_bit")}
-    given = {k: v for k, v in given.items() if v is not None}
-    return replace(base, code=chips, fs=1e7, **given)
+    return code_text(code)
 
 
 _BEEP_ONLY = BEEP_OPTIONS  # the beep options belong to --scheme beepbeep
+
+#: The parameters of :func:`ultrasonic_options` (all refused with --scheme beepbeep by
+#: :func:`refuse_ultrasonic_options`).
+ULTRASONIC_KEYS = (
+    "latency",
+    "period",
+    "tx_order",
+    "channels",
+    "min_range",
+    "max_range",
+    "q",
+    "code",
+    "carrier",
+    "cycles_per_bit",
+)
+
+
+def refuse_ultrasonic_options(kw: dict) -> None:
+    """Usage error for a one-way / echo option given with the two-way scheme (the
+    options are removed from ``kw``)."""
+    for k in ULTRASONIC_KEYS:
+        if kw.pop(k, None) is not None:
+            opt = "--" + k.replace("_", "-")
+            raise click.UsageError(f"{opt} applies to --scheme oneway and echo only")
 
 
 def ultrasonic_setup(kw: dict, *, scheme: str) -> OneWaySetup | EchoSetup:
@@ -220,37 +214,30 @@ def ultrasonic_setup(kw: dict, *, scheme: str) -> OneWaySetup | EchoSetup:
 
     ``kw`` holds the values of :func:`ultrasonic_options` (and of the beep options,
     which, like one-way-only options with ``scheme="echo"``, are usage errors naming the
-    option). Only the options given reach the object: the rest are its defaults.
+    option). Only the options given reach the object
+    (:func:`rangekit.ranging.ultrasonic_setup.ultrasonic_setup`): the rest are its
+    defaults.
     """
-    from rangekit.ranging.config import Detection, EchoSetup, OneWaySetup
-    from rangekit.signals.transducer import Transducer
+    from rangekit.ranging.ultrasonic_setup import ultrasonic_setup as build
 
     for k, opt in _BEEP_ONLY.items():
         if kw.get(k) is not None:
             raise click.UsageError(f"{opt} applies to --scheme beepbeep only")
-    cfg = {"burst": make_burst(kw, scheme=scheme), "detection": Detection()}
-    q = kw.get("q")
-    if q == 0:
-        cfg["transducer"] = None
-    elif q is not None and q != "auto":
-        cfg["transducer"] = Transducer(q=q)
-    given = {"period_s": "period", "min_range_m": "min_range", "max_range_m": "max_range"}
-    given["channels"] = "channels"
-    cfg.update({k: kw[o] for k, o in given.items() if kw.get(o) is not None})
+    code = parse_code(kw.get("code"))
     if scheme == "echo":
         for k in ("latency", "tx_order"):
             if kw.get(k) is not None:
                 raise click.UsageError(f"--{k.replace('_', '-')} applies to --scheme oneway only")
-        if q is not None:
-            cfg["fit_transducer"] = q == "auto"
-        return EchoSetup(**cfg)
-    if q is not None:
-        cfg["fit_transducers"] = q == "auto"
-    if kw.get("latency") is not None:
-        cfg["latency_s"] = kw["latency"]
-    if kw.get("tx_order") is not None:
-        vals = float_list(kw["tx_order"], name="--tx-order", lo=0, hi=1e6)
-        if any(v != int(v) for v in vals):
-            raise click.BadParameter("ids must be whole numbers", param_hint="--tx-order")
-        cfg["tx_ids"] = tuple(int(v) for v in vals)
-    return OneWaySetup(**cfg)
+    return build(
+        scheme,
+        code=code,
+        carrier_hz=kw.get("carrier"),
+        cycles_per_bit=kw.get("cycles_per_bit"),
+        q=kw.get("q"),
+        latency_s=kw.get("latency"),
+        period_s=kw.get("period"),
+        tx_ids=id_list(kw.get("tx_order"), name="--tx-order"),
+        channels=kw.get("channels"),
+        min_range_m=kw.get("min_range"),
+        max_range_m=kw.get("max_range"),
+    )

@@ -1,0 +1,46 @@
+"""The ultrasonic options become the library's objects through one call: the CLI's
+``ultrasonic_setup`` equals :func:`rangekit.ranging.ultrasonic_setup.ultrasonic_setup`
+of the same values, and ``--code`` errors stay usage errors naming the option."""
+
+from __future__ import annotations
+
+import click
+import pytest
+from rangekit_cli.ultrasonic_options import ULTRASONIC_KEYS, ultrasonic_setup
+
+from rangekit.ranging.ultrasonic_setup import ultrasonic_setup as library_setup
+
+
+@pytest.mark.parametrize(
+    "scheme, kw, values",
+    [
+        ("oneway", {}, {}),
+        ("echo", {}, {}),
+        (
+            "oneway",
+            {"code": "5", "carrier": 41000.0, "cycles_per_bit": 4, "q": "auto",
+             "latency": 0.003, "period": 0.2, "tx_order": "2,0,1", "channels": 3,
+             "min_range": 0.2, "max_range": 12.0},
+            {"code": (1, 1, 1, -1, 1), "carrier_hz": 41000.0, "cycles_per_bit": 4,
+             "q": "auto", "latency_s": 0.003, "period_s": 0.2, "tx_ids": (2, 0, 1),
+             "channels": 3, "min_range_m": 0.2, "max_range_m": 12.0},
+        ),
+        ("echo", {"code": "++-", "q": 0.0, "period": 0.07},
+         {"code": "++-", "q": 0, "period_s": 0.07}),
+        ("oneway", {"q": 7.0, "tx_order": "4"}, {"q": 7.0, "tx_ids": [4]}),
+    ],
+)  # fmt: skip
+def test_cli_setup_is_the_library_call(scheme, kw, values):
+    full = dict.fromkeys(ULTRASONIC_KEYS) | kw  # as click passes them: None when not given
+    assert ultrasonic_setup(full, scheme=scheme) == library_setup(scheme, **values)
+
+
+def test_code_and_tx_order_errors_name_the_option():
+    with pytest.raises(click.BadParameter) as e:
+        ultrasonic_setup({"code": "6"}, scheme="oneway")
+    assert e.value.param_hint == "--code" and "no Barker code of length 6" in e.value.message
+    with pytest.raises(click.BadParameter) as e:
+        ultrasonic_setup({"tx_order": "1,2.5"}, scheme="oneway")
+    assert e.value.param_hint == "--tx-order" and "whole numbers" in e.value.message
+    with pytest.raises(click.UsageError, match="--tx-order applies to --scheme oneway only"):
+        ultrasonic_setup({"tx_order": "1"}, scheme="echo")
