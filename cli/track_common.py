@@ -7,7 +7,6 @@ default, and the help text shows that default read from the library (:func:`defa
 from __future__ import annotations
 
 import inspect
-import json
 import math
 from collections.abc import Callable
 
@@ -25,9 +24,6 @@ from rangekit_cli._options import (
     verbosity_options,
     warn,
 )
-
-#: Track columns that hold whole numbers (written as integers).
-_INT_COLUMNS = frozenset({"target", "status", "n_particles", "n_hypotheses"})
 
 
 def default(fn: Callable, name: str):
@@ -124,20 +120,6 @@ def num(v: float) -> float | None:
     return f if math.isfinite(f) else None
 
 
-def _row(columns, values) -> list:
-    """One track row as Python values: ints for id columns, None for NaN (an empty cell)."""
-    out = []
-    for c, v in zip(columns, values, strict=True):
-        f = float(v)
-        if not math.isfinite(f):
-            out.append(None)
-        elif c in _INT_COLUMNS:
-            out.append(int(f))
-        else:
-            out.append(f)
-    return out
-
-
 def write_track(
     columns,
     rows,
@@ -152,32 +134,19 @@ def write_track(
     notes: tuple[str, ...] | list[str] = (),
     chosen: dict | None = None,
 ) -> None:
-    """Print (or write to ``-o``) the track as CSV or JSON, then the summary (a note,
-    dropped by ``--quiet``) and the warnings (always); with ``--verbose`` first the
-    parameters used (``chosen``, the library's defaults filled in)."""
+    """Print (or write to ``-o``) the track as CSV, a table or JSON
+    (:func:`rangekit.io.tracks.format_track`), then the summary (a note, dropped by
+    ``--quiet``) and the warnings (always); with ``--verbose`` first the parameters used
+    (``chosen``, the library's defaults filled in)."""
+    from rangekit.io.tracks import format_track
+
     if chosen:
         detail(
             f"rangekit: track {filter_name}: " + ", ".join(f"{k} {v}" for k, v in chosen.items())
         )
-    table = [_row(columns, r) for r in rows]
-    if fmt == "csv":
-        from rangekit.io.csvlog import write_table
-
-        text = write_table(columns, table)
-    elif fmt == "table":  # aligned, with the number rules of every verb's tables
-        from rangekit.io.results import format_rows
-
-        text = format_rows([dict(zip(columns, r, strict=True)) for r in table], columns, "table")
-    else:
-        obj = {
-            "filter": filter_name,
-            "log": str(log),
-            "smoothed": bool(smoothed),
-            "columns": list(columns),
-            "rows": table,
-            **(extra or {}),
-        }
-        text = json.dumps(obj, indent=2) + "\n"
+    text = format_track(
+        columns, rows, fmt, filter_name=filter_name, log=log, smoothed=smoothed, extra=extra
+    )
     emit(text, output)
     if summary:
         note(summary)
