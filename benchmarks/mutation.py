@@ -102,8 +102,14 @@ TESTS: dict[str, tuple[str, ...]] = {
         "tests/localize/test_ekf.py",
         "tests/localize/test_ekf_mutation.py",
     ),
-    "rangekit/ranging/tof.py": ("tests/ranging/test_ultrasonic.py",),
-    "rangekit/ranging/oneway.py": ("tests/ranging/test_ultrasonic.py",),
+    "rangekit/ranging/tof.py": (
+        "tests/ranging/test_ultrasonic.py",
+        "tests/ranging/test_tof_mutation.py",
+    ),
+    "rangekit/ranging/oneway.py": (
+        "tests/ranging/test_ultrasonic.py",
+        "tests/ranging/test_oneway_mutation.py",
+    ),
     "rangekit/ranging/echo.py": ("tests/ranging/test_ultrasonic.py",),
     "rangekit/ranging/ultrasonic.py": (
         "tests/ranging/test_ultrasonic.py",
@@ -142,6 +148,20 @@ EQUIVALENT: dict[str, dict[tuple, str]] = {
          "> -> >=", 1): "at e.max() == 0 every e is 0: e > 0 is the same all-False mask",
         ("if s1 - s0 < 3 or b - a < 3:", "- -> +", 0):
             "a window under 3 samples has the empty span (s0, s0) (_window_spans): b - a < 3",
+    },
+    "rangekit/ranging/oneway.py": {
+        ("(None, 4.0) if probe is not None else _fit_model(burst, fs, (tx, rx), fit_transducers)",
+         "4.0 -> 8.0"): "the starting Q of a fit: with a probe there is no model to start",
+        ("return None, 4.0", "4.0 -> 8.0"): "the starting Q of a fit: without a model, unused",
+        ("return (models if stagger else models[:1]), q0", "1 -> 2"):
+            "no caller passes stagger=False (both take the default True)",
+    },
+    "rangekit/ranging/tof.py": {
+        ("k = np.arange(int(math.floor(n_samples / per + 0.5)) + 1)", "1 -> 2"):
+            "the extra start, round((K + 1) per) > n_samples + per / 2, is dropped (< n_samples)",
+        ("starts = starts[starts < n_samples]", "< -> <="):
+            "a window starting at the end has length 0 and fails the half-period test",
+        ("pool: bool = True,", "True -> False"): "both callers (oneway, echo) pass pool",
     },
     "rangekit/physics.py": {
         ("c: float = field(init=False, repr=False, compare=False)", "False -> True", 2):

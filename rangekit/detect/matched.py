@@ -136,7 +136,10 @@ def coded_template(
     q = max(t.q for t in (tx, rx) if t is not None)
     f0 = min(t.f0_hz for t in (tx, rx) if t is not None)
     # A resonator's envelope decays as exp(-pi f0 t / Q): 60 dB takes ~2.2 Q / f0 each.
-    n_tail = int(math.ceil(4.0 * (tail_db / 20.0) * math.log(10.0) * q / (math.pi * f0) * fs))
+    # Rendered for 8x that: higher-order elements (a 6th-order Butterworth) ring longer,
+    # and the cut below is relative to the rendered energy (4x left out up to 1.6x the
+    # tail's share).
+    n_tail = int(math.ceil(8.0 * (tail_db / 20.0) * math.log(10.0) * q / (math.pi * f0) * fs))
     y = apply_chain(np.concatenate([drive, np.zeros(n_tail)]), (tx, rx), fs=fs)
     e = np.cumsum(y[::-1] ** 2)[::-1]
     keep = int(np.searchsorted(-e, -e[0] * 10.0 ** (-tail_db / 10.0)))
