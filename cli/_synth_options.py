@@ -5,6 +5,7 @@ from __future__ import annotations
 import click
 from rangekit_cli._options import (
     FiniteRange,
+    LazyHelpOption,
     check_outputs,
     debug_option,
     detail,
@@ -68,21 +69,39 @@ def parse_pose(text: str, name: str = "--pose") -> list[float]:
     return v
 
 
-def ultrasonic_synth_options(f):
+def scenario_default(func: str, name: str, convert=None) -> dict:
+    """``default``, ``show_default`` and ``cls`` of an option whose default is keyword
+    ``name`` of :mod:`rangekit.sim.scenarios`' function ``func`` (``func="ShoeboxRoom"``:
+    a field of :class:`rangekit.sim.ShoeboxRoom`), read when the command runs or shows
+    help (:class:`LazyHelpOption`), not copied; ``convert`` maps it to the option's unit."""
+
+    def read():
+        import inspect
+
+        from rangekit.sim import ShoeboxRoom, scenarios
+
+        fn = ShoeboxRoom if func == "ShoeboxRoom" else getattr(scenarios, func)
+        value = inspect.signature(fn).parameters[name].default
+        return value if convert is None else convert(value)
+
+    return {"default": read, "show_default": True, "cls": LazyHelpOption}
+
+
+def ultrasonic_synth_options(func: str):
     """--temperature, --transducer-q, --fs, --seed, -o, -q/-v and --debug of the ultrasonic
-    synth commands."""
+    synth command that calls ``func`` of :mod:`rangekit.sim.scenarios` (its defaults)."""
+    q = scenario_default(func, "q")["default"]
     opts = [
         transducer_q_options(
             FiniteRange(0.5, 100.0),
-            4.0,
-            "Q of the transducers (Tx and Rx; the echo sensor has one).",
+            q,
+            lambda: "Q of the transducers (Tx and Rx; the echo sensor has one).",
         ),
         click.option(
             "--fs",
             type=FiniteRange(1000.0, 1e7),
-            default=192000.0,
-            show_default=True,
             help="Sample rate, Hz.",
+            **scenario_default(func, "fs"),
         ),
         click.option(
             "--seed", type=click.IntRange(0, 2**63 - 1), default=None, help="Random seed, >= 0."
@@ -97,6 +116,10 @@ def ultrasonic_synth_options(f):
             help="WAV file to write.",
         ),
     ]
-    for o in reversed(opts):
-        f = o(f)
-    return verbosity_options(debug_option(temperature_option(f)))
+
+    def deco(f):
+        for o in reversed(opts):
+            f = o(f)
+        return verbosity_options(debug_option(temperature_option(f)))
+
+    return deco

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import click
@@ -10,6 +11,7 @@ from rangekit_cli._synth_options import (
     describe_seed,
     parse_point,
     parse_pose,
+    scenario_default,
     ultrasonic_synth_options,
     write,
 )
@@ -27,9 +29,8 @@ from rangekit_cli._synth_options import (
 @click.option(
     "--ceiling",
     type=FiniteRange(0.1, 100.0),
-    default=2.011,
-    show_default=True,
     help="Transmitter height z_T above the receivers' plane, m (Kim & Kim 2013 §V).",
+    **scenario_default("synth_oneway", "ceiling_m"),
 )
 @click.option(
     "--pose",
@@ -41,9 +42,8 @@ from rangekit_cli._synth_options import (
 @click.option(
     "--radius",
     type=FiniteRange(0.0, 10.0),
-    default=0.19,
-    show_default=True,
     help="Receiver circle radius r_R, m (receivers at 0, 120, 240 degrees).",
+    **scenario_default("synth_oneway", "radius_m"),
 )
 @click.option(
     "--windows",
@@ -55,23 +55,20 @@ from rangekit_cli._synth_options import (
 @click.option(
     "--period",
     type=FiniteRange(0.001, 60.0),
-    default=0.2,
-    show_default=True,
     help="Activation period, s (5 Hz).",
+    **scenario_default("synth_oneway", "period_s"),
 )
 @click.option(
     "--latency",
     type=FiniteRange(0.0, 1.0),
-    default=0.0,
-    show_default=True,
     help="Trigger-to-drive latency, s.",
+    **scenario_default("synth_oneway", "latency_s"),
 )
 @click.option(
     "--snr-db",
     type=FiniteRange(-60.0, 200.0),
-    default=20.0,
-    show_default=True,
     help="In-band SNR of the weakest direct arrival, dB (band: the code's main lobe).",
+    **scenario_default("synth_oneway", "snr_db"),
 )
 @click.option(
     "--room", default=None, metavar="LX,LY,LZ", help="Shoebox room (reflections); positions inside."
@@ -79,16 +76,14 @@ from rangekit_cli._synth_options import (
 @click.option(
     "--absorption",
     type=FiniteRange(0.0, 1.0),
-    default=0.3,
-    show_default=True,
     help="Wall energy absorption.",
+    **scenario_default("ShoeboxRoom", "absorption"),
 )
 @click.option(
     "--order",
     type=click.IntRange(0, 6),
-    default=1,
-    show_default=True,
     help="Image-source reflection order.",
+    **scenario_default("ShoeboxRoom", "max_order"),
 )
 @click.option(
     "--reflection",
@@ -97,7 +92,7 @@ from rangekit_cli._synth_options import (
     metavar="DELAY_MS,GAIN",
     help="An extra path for every arrival: DELAY_MS after the direct one, GAIN times it (repeat).",
 )
-@ultrasonic_synth_options
+@ultrasonic_synth_options("synth_oneway")
 def synth_oneway(
     txs, ceiling, pose, radius, n_windows, period, latency, snr_db, no_noise, room, absorption,
     order, reflections, temp_c, q, fs, seed, impairments, output,
@@ -118,8 +113,6 @@ def synth_oneway(
       rangekit range --scheme oneway ow.wav --period 0.2 --tx-order 0,1 --format csv -o r.csv
       rangekit locate --beacons ow.beacons.json --ranges r.csv
     """
-    import math
-
     from rangekit.sim import ShoeboxRoom
     from rangekit.sim.scenarios import synth_oneway
 
@@ -179,18 +172,16 @@ def synth_oneway(
 @click.option(
     "--mount",
     type=FiniteRange(-360.0, 360.0),
-    default=0.0,
-    show_default=True,
     help="Sensor axis relative to the heading, degrees (+90 = left).",
+    **scenario_default("synth_echo", "mount_angle_rad", math.degrees),
 )
 @click.option(
     "--snr-db",
     type=FiniteRange(-60.0, 200.0),
-    default=20.0,
-    show_default=True,
     help="In-band SNR of an on-axis echo at the 6 m maximum range, dB.",
+    **scenario_default("synth_echo", "snr_db"),
 )
-@ultrasonic_synth_options
+@ultrasonic_synth_options("synth_echo")
 def synth_echo(map_path, poses, mount, snr_db, no_noise, temp_c, q, fs, seed, impairments, output):
     """SRF02 echo recording in a floor plan: one 70 ms ranging cycle per --pose.
 
@@ -205,8 +196,6 @@ def synth_echo(map_path, poses, mount, snr_db, no_noise, temp_c, q, fs, seed, im
       rangekit synth echo --map plan.json --pose 1,1,90 --pose 1,1.5,90 -o echo.wav
       rangekit range --scheme echo echo.wav --period 0.07
     """
-    import math
-
     from rangekit.floorplan import load_floorplan
     from rangekit.sim.scenarios import synth_echo
 
