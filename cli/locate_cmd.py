@@ -6,6 +6,7 @@ import math
 
 import click
 from rangekit_cli._options import (
+    LazyHelpOption,
     debug_option,
     detail,
     emit,
@@ -20,6 +21,21 @@ from rangekit_cli._options import (
 FIELDS = ("x_m", "y_m", "heading_deg", "method_used", "residual_m")
 #: Added when the distances' sigma is known (--ranges or --sigma).
 SIGMA_FIELDS = ("sigma_x_m", "sigma_y_m", "sigma_heading_deg")
+
+
+def _uhl_default(name: str) -> dict:
+    """``default``, ``show_default`` and ``cls`` of an option whose default is keyword
+    ``name`` of :func:`rangekit.localize.uhl.solve_pose`, read when the command runs or
+    shows help (:class:`LazyHelpOption`), not copied."""
+
+    def read():
+        import inspect
+
+        from rangekit.localize.uhl import solve_pose
+
+        return inspect.signature(solve_pose).parameters[name].default
+
+    return {"default": read, "show_default": True, "cls": LazyHelpOption}
 
 
 @click.command("locate")
@@ -69,8 +85,7 @@ SIGMA_FIELDS = ("sigma_x_m", "sigma_y_m", "sigma_heading_deg")
 @click.option(
     "--method",
     type=click.Choice(["hybrid", "direct", "indirect"]),
-    default="hybrid",
-    show_default=True,
+    **_uhl_default("method"),
     help="Position by the direct method, the indirect method using ranges, or the hybrid "
     "rule of Kim & Kim 2013 Table I.",
 )
@@ -79,8 +94,7 @@ SIGMA_FIELDS = ("sigma_x_m", "sigma_y_m", "sigma_heading_deg")
     "d_th",
     lo=0.0,
     hi=None,
-    default=0.2,
-    show_default=True,
+    **_uhl_default("d_th"),
     metavar="M",
     help="Hybrid threshold, m: with collinear transmitters, the direct position is kept "
     "within this distance of their line.",
@@ -91,8 +105,7 @@ SIGMA_FIELDS = ("sigma_x_m", "sigma_y_m", "sigma_heading_deg")
     lo=0.0,
     hi=None,
     min_open=True,
-    default=0.19,
-    show_default=True,
+    **_uhl_default("r_R"),
     metavar="M",
     help="Radius of the receiver circle on the robot, m.",
 )
