@@ -10,14 +10,15 @@ For a module of :data:`TESTS` the script lists every mutation site of its source
 
 Docstrings, type annotations and ``__all__`` are not mutated. A seeded sample of the sites
 (``--n``, default 40 per module, ``--seed``) is applied one at a time to a private copy of
-the repository (``rangekit/``, ``cli/`` as ``rangekit_cli``, ``tests/``, ``pyproject.toml``
-in a temporary folder that comes first on ``PYTHONPATH``; the working tree is never
-written), and the module's own tests (:data:`TESTS`, with the module's doctests) run with
-``pytest -x -q`` under a per-mutant timeout. A mutant is *killed* when the tests fail,
-error or time out, and *survives* when they pass; the score is killed / sampled. An
-unmutated baseline run must pass first. Survivors are printed with their line, so a blind
-test can be written against each (some survivors are equivalent mutants: the changed code
-computes the same result, e.g. a ``<`` vs ``<=`` on a float that is never equal).
+the repository (``rangekit/``, ``cli/`` as ``rangekit_cli``, ``tests/``,
+``pyproject.toml``, ``fixtures_audio/`` in a temporary folder that comes first on
+``PYTHONPATH``; the working tree is never written), and the module's own tests
+(:data:`TESTS`, with the module's doctests) run with ``pytest -x -q`` under a per-mutant
+timeout. A mutant is *killed* when the tests fail, error or time out, and *survives* when
+they pass; the score is killed / sampled. An unmutated baseline run must pass first.
+Survivors are printed with their line, so a blind test can be written against each (some
+survivors are equivalent mutants: the changed code computes the same result, e.g. a ``<``
+vs ``<=`` on a float that is never equal).
 
 Survivors judged equivalent mutants are listed in :data:`EQUIVALENT` (by the text of their
 line, with the reason); the summary counts them apart as well ("without them": killed over
@@ -110,7 +111,10 @@ TESTS: dict[str, tuple[str, ...]] = {
         "tests/ranging/test_ultrasonic.py",
         "tests/ranging/test_oneway_mutation.py",
     ),
-    "rangekit/ranging/echo.py": ("tests/ranging/test_ultrasonic.py",),
+    "rangekit/ranging/echo.py": (
+        "tests/ranging/test_ultrasonic.py",
+        "tests/ranging/test_echo_mutation.py",
+    ),
     "rangekit/ranging/ultrasonic.py": (
         "tests/ranging/test_ultrasonic.py",
         "tests/cli/test_ultrasonic_cli.py",
@@ -148,6 +152,9 @@ EQUIVALENT: dict[str, dict[tuple, str]] = {
          "> -> >=", 1): "at e.max() == 0 every e is 0: e > 0 is the same all-False mask",
         ("if s1 - s0 < 3 or b - a < 3:", "- -> +", 0):
             "a window under 3 samples has the empty span (s0, s0) (_window_spans): b - a < 3",
+    },
+    "rangekit/ranging/echo.py": {
+        ("(None, 4.0)", "4.0 -> 8.0"): "the starting Q of a fit: with a probe there is no model",
     },
     "rangekit/ranging/oneway.py": {
         ("(None, 4.0) if probe is not None else _fit_model(burst, fs, (tx, rx), fit_transducers)",
@@ -318,6 +325,7 @@ def _copy_tree(dst: pathlib.Path) -> None:
     shutil.copytree(ROOT / "cli", dst / "rangekit_cli", ignore=ignore)
     shutil.copytree(ROOT / "tests", dst / "tests", ignore=ignore)
     shutil.copy2(ROOT / "pyproject.toml", dst / "pyproject.toml")
+    shutil.copytree(ROOT / "fixtures_audio", dst / "fixtures_audio")  # the CLI tests' data
 
 
 def _run_tests(work: pathlib.Path, args: list[str], timeout_s: float) -> tuple[str, float]:
