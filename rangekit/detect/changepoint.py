@@ -117,6 +117,12 @@ CLICK_MAX_S = 8 / 44100
 CLICK_GAP_S = 32 / 44100
 #: Out-of-band over in-band energy above which an arrival is flagged ``dc_or_lowband``.
 OOB_RATIO = 100.0
+#: A burst edge one spacing before a beep's first burst (or after its last) whose edge
+#: statistic is at least this fraction of the statistic of the burst at the other end
+#: (the one a beep shifted by that spacing would leave out) makes the beep's start
+#: ambiguous by a whole spacing: the arrival is flagged ``ambiguous_first_path``
+#: (:func:`_shift_flags`; the statistic grows as the burst's energy, so 6 dB weaker).
+SHIFT_RATIO = 0.25
 
 
 @dataclass(frozen=True)
@@ -321,39 +327,13 @@ def _fit_beep(
     look = int(round(LOOKBACK_S * fs))
     u0, u1 = -(n_win // 2) - look, n_win + hop
     width = u1 - u0 + 1
-    margin = int(math.ceil(48 * fs / 44100.0 + beep.taper_s * fs)) + 8
     pre, post = _window(fs, beep, None, None)
     segs, stats, widened = [], [], []
-    scale_raw = cond.f_scale ** (2.0 / 3.0)
     for k in range(beep.n_bursts):
         p = int(round(a + k * spacing))
-        seg, off = cond.segment(p + u0 - margin, p + u1 + margin)
-        f = _stat_on(
-            seg, None, False, off, p, u0, width, fs=fs, beep=beep, bg=background, compiled=compiled
+        seg, off, f = _burst_stat(
+            cond, p, u0, width, fs=fs, beep=beep, background=background, compiled=compiled
         )
-        if cond.is_clipped(p + u0 - margin, p + u1 + margin):
-            # Clipped: a clipped tone's band-limited edge saturates (and its aliased
-            # harmonics reach the band), so the statistic is also computed on the raw
-            # samples with the clipped ones left out and a constant and slope fitted. The
-            # raw one (put on the band-limited scale) is used when it finds an edge at
-            # all; interference it cannot model can hide it, and then the band-limited
-            # one (biased by a few samples, but found) serves.
-            a0, b0 = max(0, p + u0 - margin), min(len(cond.x), p + u1 + margin)
-            f_raw = _stat_on(
-                np.asarray(cond.x[a0:b0], dtype=np.float64),
-                cond.clipped[a0:b0],
-                True,
-                a0,
-                p,
-                u0,
-                width,
-                fs=fs,
-                beep=beep,
-                bg=background,
-                compiled=compiled,
-            )
-            if float(f_raw.max()) >= F_MIN:
-                f = scale_raw * f_raw
         segs.append((seg, off, p))
         stats.append(f)
         widened.append(_widen(f, 2))
@@ -426,6 +406,53 @@ def _fit_beep(
         if fit is not None:
             fits[k] = replace(fit, onset=fit.onset + off)
     return fits, clipped, None
+
+
+def _burst_stat(
+    cond: _Conditioner,
+    p: int,
+    u0: int,
+    width: int,
+    *,
+    fs: float,
+    beep: Beep,
+    background: bool,
+    compiled: bool = False,
+) -> tuple[np.ndarray, int, np.ndarray]:
+    """``(segment, its offset, statistic)``: the edge statistic of one burst at onsets
+    ``p + u0 ... p + u0 + width - 1``, on the band-limited segment it was computed on.
+
+    Clipped: a clipped tone's band-limited edge saturates (and its aliased harmonics
+    reach the band), so the statistic is also computed on the raw samples with the
+    clipped ones left out and a constant and slope fitted. The raw one (put on the
+    band-limited scale) is used when it finds an edge at all; interference it cannot
+    model can hide it, and then the band-limited one (biased by a few samples, but found)
+    serves.
+    """
+    margin = int(math.ceil(48 * fs / 44100.0 + beep.taper_s * fs)) + 8
+    u1 = u0 + width - 1
+    seg, off = cond.segment(p + u0 - margin, p + u1 + margin)
+    f = _stat_on(
+        seg, None, False, off, p, u0, width, fs=fs, beep=beep, bg=background, compiled=compiled
+    )
+    if cond.is_clipped(p + u0 - margin, p + u1 + margin):
+        a0, b0 = max(0, p + u0 - margin), min(len(cond.x), p + u1 + margin)
+        f_raw = _stat_on(
+            np.asarray(cond.x[a0:b0], dtype=np.float64),
+            cond.clipped[a0:b0],
+            True,
+            a0,
+            p,
+            u0,
+            width,
+            fs=fs,
+            beep=beep,
+            bg=background,
+            compiled=compiled,
+        )
+        if float(f_raw.max()) >= F_MIN:
+            f = cond.f_scale ** (2.0 / 3.0) * f_raw
+    return seg, off, f
 
 
 def _widen(f: np.ndarray, half: int) -> np.ndarray:
@@ -666,20 +693,33 @@ def _anchor(
     for j in range(k_b):
         tot = 0.0
         for k in range(k_b):
-            f = int(round((c + (k - j) * spacing) / hop))
-            p0, p1 = f + w, f + w + n_plat
-            q0, q1 = f - w - 8, f - w
-            if q0 < 0 or p1 > n_e:
-                continue
-            plat = (cs[p1] - cs[p0]) / (p1 - p0)
-            pre = (cs[q1] - cs[q0]) / (q1 - q0)
-            if plat > 0:
-                rise = min(30.0, max(0.0, 10.0 * math.log10(plat / max(pre, 1e-300))))
+            rise = _rise_db(c + (k - j) * spacing, cs, n_e, hop=hop, w=w, n_plat=n_plat)
+            if rise is not None:
                 tot += rise
                 rising[j] += rise >= MIN_RISE_DB
         scores[j] = tot
     best_j = int(np.flatnonzero(scores >= scores.max() - 1e-9)[0])
     return int(round(c - best_j * spacing)), int(rising[best_j])
+
+
+def _rise_db(
+    place: float, cs: np.ndarray, n_e: int, *, hop: int, w: int, n_plat: int
+) -> float | None:
+    """Rise of the band energy at a burst starting at sample ``place``, dB in [0, 30]: the
+    mean over the ``n_plat`` frames from a window after it over the mean over the 8 frames
+    ending a window before it (``cs``: cumulative sum of the ``n_e`` frames' energy, with a
+    leading 0). None where those frames leave the series or the plateau holds no energy.
+    """
+    f = int(round(place / hop))
+    p0, p1 = f + w, f + w + n_plat
+    q0, q1 = f - w - 8, f - w
+    if q0 < 0 or p1 > n_e:
+        return None
+    plat = (cs[p1] - cs[p0]) / (p1 - p0)
+    pre = (cs[q1] - cs[q0]) / (q1 - q0)
+    if not plat > 0:
+        return None
+    return min(30.0, max(0.0, 10.0 * math.log10(plat / max(pre, 1e-300))))
 
 
 def _anchor_args(
@@ -782,6 +822,11 @@ def _median(vals: list[float]) -> float:
     return float(v[m]) if len(v) % 2 else float((v[m - 1] + v[m]) / 2.0)
 
 
+#: Largest set of groups linked by shared bursts whose best selection is searched whole
+#: (:func:`_resolve_aliases`; 2^n subsets); a larger one is resolved pair by pair.
+ALIAS_SET_MAX = 12
+
+
 def _resolve_aliases(rows: list[tuple], *, tol: float) -> list[tuple]:
     """Keep one of two groups that share bursts: one beep indexed two ways.
 
@@ -790,22 +835,63 @@ def _resolve_aliases(rows: list[tuple], *, tol: float) -> list[tuple]:
     many agreeing bursts as the real group and starts earlier, so the echo rule would
     keep it. Groups sharing two or more burst onsets (within ``tol`` samples) are the same
     beep: the one with the larger summed edge statistic stays.
+
+    Groups linked that way in a chain (two beeps on one spacing grid, the second starting
+    one spacing after the first one's last burst: groups at every spacing between them,
+    each mixing bursts of both) are resolved together: of the selections whose groups
+    share no burst, the one with the largest summed edge statistic stays. That keeps the
+    two beeps, which explain every burst once; dropping the weaker of each pair in turn
+    kept one of the mixed groups and lost a beep. (Counting a burst two kept groups share
+    once, from their mean statistics per burst, instead of forbidding it lost the faint
+    beep after a loud one in 2 of 6 seeds: the loud bursts' statistics vary more between
+    groups than a faint burst's whole statistic.) For two groups it is the rule above.
     """
-    keep = [True] * len(rows)
+    n = len(rows)
     ons = [r[4][np.isfinite(r[4])] for r in rows]
     span = [(float(a.min()), float(a.max())) if len(a) else (math.inf, -math.inf) for a in ons]
-    for i in range(len(rows)):
-        for j in range(i + 1, len(rows)):
-            if not (keep[i] and keep[j]):
-                continue
+    shared = np.zeros((n, n), dtype=np.int64)
+    for i in range(n):
+        for j in range(i + 1, n):
             # Groups whose burst onsets lie more than tol apart share none (skip the test).
             if span[i][0] > span[j][1] + tol or span[j][0] > span[i][1] + tol:
                 continue
             a, b = ons[i], ons[j]
-            shared = int(np.sum(np.min(np.abs(a[:, None] - b[None, :]), axis=1) <= tol))
-            if shared >= 2 and abs(rows[i][0] - rows[j][0]) > tol:
-                weaker = i if rows[i][6] < rows[j][6] else j
-                keep[weaker] = False
+            k = int(np.sum(np.min(np.abs(a[:, None] - b[None, :]), axis=1) <= tol))
+            shared[i, j] = shared[j, i] = k
+    onset = np.array([r[0] for r in rows])
+    alias = (shared >= 2) & (np.abs(onset[:, None] - onset[None, :]) > tol)
+    strength = [float(r[6]) for r in rows]
+    keep = [True] * n
+    seen = [False] * n
+    for start in range(n):
+        if seen[start] or not alias[start].any():
+            continue
+        comp, todo = [], [start]
+        seen[start] = True
+        while todo:
+            i = todo.pop()
+            comp.append(i)
+            for j in np.flatnonzero(alias[i]).tolist():
+                if not seen[j]:
+                    seen[j] = True
+                    todo.append(j)
+        comp.sort()
+        if len(comp) <= ALIAS_SET_MAX:
+            best, best_s = 0, -math.inf
+            for m in range(1, 1 << len(comp)):
+                sel = [comp[t] for t in range(len(comp)) if m >> t & 1]
+                if any(shared[i, j] for i in sel for j in sel if i < j):
+                    continue
+                tot = sum(strength[i] for i in sel)
+                if tot > best_s:
+                    best, best_s = m, tot
+            for t, i in enumerate(comp):
+                keep[i] = bool(best >> t & 1)
+            continue
+        for i in comp:  # pair by pair, in order
+            for j in comp:
+                if i < j and keep[i] and keep[j] and alias[i, j]:
+                    keep[i if strength[i] < strength[j] else j] = False
     return [r for r, k in zip(rows, keep, strict=True) if k]
 
 
@@ -881,8 +967,10 @@ def detect_changepoint(
     -------
     Arrivals
         One entry per beep, in time order; empty for a silent recording. ``flags`` per
-        arrival: ``inconsistent_bursts``, ``clipped``, ``low_snr``, ``reverb_limited``,
-        ``dc_or_lowband`` (see :data:`rangekit.types.ARRIVAL_FLAGS`).
+        arrival: ``inconsistent_bursts``, ``clipped``, ``low_snr``,
+        ``ambiguous_first_path`` (sound of the band before the onset, or a burst one
+        spacing beyond the beep's first or last: :func:`_shift_flags`),
+        ``reverb_limited``, ``dc_or_lowband`` (see :data:`rangekit.types.ARRIVAL_FLAGS`).
 
     Examples
     --------
@@ -973,6 +1061,7 @@ def detect_changepoint(
         flags=np.array([r[5] for r in rows], dtype=np.int64),
     )
     arr = drop_echoes(arr, duration=beep.duration_s * fs)
+    arr = _shift_flags(arr, cond, e, cs, fs=fs, beep=beep, n_win=n_win, hop=hop, bg=background)
     if expected is not None and len(arr) > expected:
         weak = flag_bit("inconsistent_bursts") | flag_bit("low_snr")
         doubtful = np.flatnonzero(arr.flags & weak)
@@ -981,6 +1070,90 @@ def detect_changepoint(
         drop = order[: len(arr) - expected]
         arr = arr.take(np.setdiff1d(np.arange(len(arr)), drop))
     return arr
+
+
+def _shift_flags(
+    arr: Arrivals,
+    cond: _Conditioner,
+    e: np.ndarray,
+    cs: np.ndarray,
+    *,
+    fs: float,
+    beep: Beep,
+    n_win: int,
+    hop: int,
+    bg: bool,
+) -> Arrivals:
+    """``arr`` with ``ambiguous_first_path`` added to each arrival whose start is
+    ambiguous by a whole burst spacing.
+
+    Bursts at ``t0, t0 + s, ..., t0 + (K-1) s`` plus a burst-like sound at ``t0 + K s``
+    (a strong late reflection, another device's burst landing on the spacing grid) fit a
+    beep at ``t0 + s`` nearly as well as one at ``t0``: the two share K-1 bursts, and
+    which one the strengths favour is chance. Likewise a sound at ``t0 - s``. For each
+    end, the place one spacing beyond the outermost burst found (from that burst's onset,
+    at the nominal spacing) is tested: the band energy rising there (``_rise_db``,
+    ``MIN_RISE_DB``) and then the edge statistic (``_burst_stat``) over a taper plus the
+    bursts' allowed scatter either side; the place is a burst when that statistic peaks
+    within the scatter, reaches the per-burst threshold and ``SHIFT_RATIO`` of the
+    statistic of the burst a shifted beep would drop (the one at the other end; 0 when
+    that one is missing). A place where a burst of another arrival lies is not tested:
+    that arrival explains the sound there, and the shifted beep would have to share its
+    burst and leave a burst of this one unexplained (a far beep whose last burst lies one
+    spacing before the own beep: the own beep's first burst is at the far beep's next
+    place). Run on the finished arrivals (after :func:`drop_echoes`), the same for the
+    numpy and the compiled path; the band-energy test keeps the edge statistic off
+    almost every place.
+    """
+    k_b = beep.n_bursts
+    if k_b < 2 or len(arr) == 0:
+        return arr
+    spacing = beep.spacing_s * fs
+    scale = fs / 44100.0
+    w = max(1, n_win // hop)
+    n_plat = max(1, int((beep.burst_s * fs - 2 * n_win) / hop))
+    sep = max(2, int(round(beep.taper_s * fs)))
+    f_min = F_MIN * cond.f_scale ** (2.0 / 3.0)
+    kw = {"fs": fs, "beep": beep, "background": bg, "compiled": cond.compiled}
+    bit = flag_bit("ambiguous_first_path")
+    flags = arr.flags.copy()
+    bursts = [r[np.isfinite(r)] for r in arr.burst_onsets]
+    others = [
+        np.concatenate([b for j, b in enumerate(bursts) if j != i] or [np.zeros(0)])
+        for i in range(len(arr))
+    ]
+    for i in range(len(arr)):
+        if flags[i] & bit:
+            continue
+        row = arr.burst_onsets[i]
+        ks = np.flatnonzero(np.isfinite(row))
+        if len(ks) == 0:
+            continue
+        # The scatter _combine allows a burst: 2 samples + 4 sigma + 200 ppm of a spacing.
+        tol = int(
+            math.ceil(2.0 * scale + 4.0 * min(float(arr.sigma[i]), 2.0 * scale) + 2e-4 * spacing)
+        )
+        for k_n, k_x, k_r in ((int(ks[0]), -1, k_b - 1), (int(ks[-1]), k_b, 0)):
+            place = float(row[k_n]) + (k_x - k_n) * spacing
+            rise = _rise_db(place, cs, len(e), hop=hop, w=w, n_plat=n_plat)
+            if rise is None or rise < MIN_RISE_DB:
+                continue
+            p = int(round(place))
+            if p - tol - sep < 0 or p + tol + sep >= len(cond.x):
+                continue
+            if len(others[i]) and float(np.min(np.abs(others[i] - place))) <= tol:
+                continue  # a burst of another arrival: explained (see above)
+            f_x = _burst_stat(cond, p, -tol - sep, 2 * (tol + sep) + 1, **kw)[2]
+            j = int(np.argmax(f_x))
+            if abs(j - tol - sep) > tol or f_x[j] < f_min:
+                continue
+            f_r = 0.0
+            if np.isfinite(row[k_r]):
+                f_r = float(_burst_stat(cond, int(round(row[k_r])), -2, 5, **kw)[2].max())
+            if f_x[j] >= SHIFT_RATIO * f_r:
+                flags[i] |= bit
+                break
+    return replace(arr, flags=flags)
 
 
 class _Found:
