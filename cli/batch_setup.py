@@ -6,9 +6,8 @@ from __future__ import annotations
 
 from dataclasses import replace
 
-import click
 from rangekit_cli._options import float_list, make_beep
-from rangekit_cli.ultrasonic_options import ultrasonic_setup
+from rangekit_cli.ultrasonic_options import refuse_ultrasonic_options, ultrasonic_setup
 
 SCHEMES = ("oneway", "echo")  # the ultrasonic schemes, each with its setup
 
@@ -32,10 +31,7 @@ def batch_options(
 
     sd = float_list(self_distance, name="--self-distance", lo=0.0, hi=2.0)
     if scheme == "beepbeep":
-        for k in ("latency", "period", "tx_order", "channels", "min_range", "max_range"):
-            if kw.get(k) is not None:
-                opt = "--" + k.replace("_", "-")
-                raise click.UsageError(f"{opt} applies to --scheme oneway and echo only")
+        refuse_ultrasonic_options(kw, remove=False)
         beepbeep = {
             "beep": make_beep(kw),
             "detector": detector,

@@ -184,28 +184,27 @@ def _code_text(code) -> str:
 
 _BEEP_ONLY = BEEP_OPTIONS  # the beep options belong to --scheme beepbeep
 
-#: The parameters of :func:`ultrasonic_options` (all refused with --scheme beepbeep by
-#: :func:`refuse_ultrasonic_options`).
-ULTRASONIC_KEYS = (
-    "latency",
-    "period",
-    "tx_order",
-    "channels",
-    "min_range",
-    "max_range",
-    "q",
-    "code",
-    "carrier",
-    "cycles_per_bit",
-)
+#: The parameters of :func:`ultrasonic_options` and their option names (all refused with
+#: --scheme beepbeep by :func:`refuse_ultrasonic_options`).
+ULTRASONIC_KEYS = {
+    "latency": "--latency",
+    "period": "--period",
+    "tx_order": "--tx-order",
+    "channels": "--channels",
+    "min_range": "--min-range",
+    "max_range": "--max-range",
+    "q": "--transducer-q",
+    "code": "--code",
+    "carrier": "--carrier",
+    "cycles_per_bit": "--cycles-per-bit",
+}
 
 
-def refuse_ultrasonic_options(kw: dict) -> None:
-    """Usage error for a one-way / echo option given with the two-way scheme (the
-    options are removed from ``kw``)."""
-    for k in ULTRASONIC_KEYS:
-        if kw.pop(k, None) is not None:
-            opt = "--" + k.replace("_", "-")
+def refuse_ultrasonic_options(kw: dict, *, remove: bool = True) -> None:
+    """Usage error for a one-way / echo option given with the two-way scheme, naming it
+    (with ``remove``, the options are removed from ``kw``)."""
+    for k, opt in ULTRASONIC_KEYS.items():
+        if (kw.pop(k, None) if remove else kw.get(k)) is not None:
             raise click.UsageError(f"{opt} applies to --scheme oneway and echo only")
 
 

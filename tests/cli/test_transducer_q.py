@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import pytest
 from clihelp import assert_error, ok, run
 
@@ -36,3 +38,29 @@ def test_no_suggestion_of_the_hidden_spelling():
     assert "'--q'" not in line
     r = run(["range", "x.wav", "--quiet", "--detector", "nope"])
     assert_error(r, 2, "--detector")  # --quiet is an option now, not "did you mean --q"
+
+
+BEEP = Path(__file__).resolve().parents[2] / "fixtures_audio" / "beepbeep_2p5m.wav"
+
+
+@pytest.mark.parametrize("verb", ["range", "batch"])
+@pytest.mark.parametrize(
+    ("option", "value"),
+    [
+        ("--transducer-q", "5"),
+        ("--code", "13"),
+        ("--carrier", "40000"),
+        ("--cycles-per-bit", "3"),
+        ("--latency", "0.1"),
+        ("--min-range", "0.5"),
+    ],
+)
+def test_an_ultrasonic_option_with_the_beep_is_refused_by_its_name(verb, option, value, tmp_path):
+    """With --scheme beepbeep (the default) range refused --transducer-q naming the hidden
+    '--q', and batch ignored --transducer-q, --code, --carrier and --cycles-per-bit (exit
+    0): both refuse every one-way / echo option, by the name --help shows, and write
+    nothing."""
+    out = ["-o", tmp_path / "out.csv"]
+    line = assert_error(run([verb, BEEP, option, value, *out]), 2, option)
+    assert "'--q'" not in line and " --q " not in line
+    assert list(tmp_path.iterdir()) == []
