@@ -103,6 +103,10 @@ TESTS: dict[str, tuple[str, ...]] = {
         "tests/localize/test_ekf.py",
         "tests/localize/test_ekf_mutation.py",
     ),
+    "rangekit/detect/stagger.py": ("tests/detect/test_stagger.py",),
+    "rangekit/detect/pathfit.py": ("tests/detect/test_pathfit.py",),
+    "rangekit/detect/_pathfit_kernels.py": ("tests/detect/test_pathfit_kernels.py",),
+    "rangekit/detect/_coherent.py": ("tests/detect/test_template_coherent.py",),
     "rangekit/ranging/tof.py": (
         "tests/ranging/test_ultrasonic.py",
         "tests/ranging/test_tof_mutation.py",
@@ -118,6 +122,7 @@ TESTS: dict[str, tuple[str, ...]] = {
     "rangekit/ranging/ultrasonic.py": (
         "tests/ranging/test_ultrasonic.py",
         "tests/cli/test_ultrasonic_cli.py",
+        "tests/ranging/test_ultrasonic_mutation.py",
     ),
 }
 
@@ -152,6 +157,16 @@ EQUIVALENT: dict[str, dict[tuple, str]] = {
          "> -> >=", 1): "at e.max() == 0 every e is 0: e > 0 is the same all-False mask",
         ("if s1 - s0 < 3 or b - a < 3:", "- -> +", 0):
             "a window under 3 samples has the empty span (s0, s0) (_window_spans): b - a < 3",
+        ("b_hi = max(b_lo, min(n_blocks, (nx + lead - n) // step + 1)) if nx + lead >= n "
+         "else b_lo", "+ -> -", 1):
+            "fewer blocks as views of x: the rest are copied by padded(), the same samples",
+        ("per = max(1, (1 << 18) // n)  # blocks per batched FFT call", "1 -> 2", 0):
+            "batch size only: each row's transform does not depend on the batch",
+        ("if lo < 0 or hi > n:", "0 -> 1"): "at lo == 0 the padding is empty: the same piece",
+        ("sa_spec[f < 0] = 0.0", "< -> <="):
+            "the DC bin adds a real constant to s_a; only its imaginary part (d_phi) is used",
+        ("eps = max(f.misfit, 0.0) * (1.0 - MISFIT_Z_FREE / z) if z > MISFIT_Z_FREE else 0.0",
+         "> -> >="): "at z == MISFIT_Z_FREE the factor 1 - 3 / z is 0: eps is 0 either way",
     },
     "rangekit/ranging/echo.py": {
         ("(None, 4.0)", "4.0 -> 8.0"): "the starting Q of a fit: with a probe there is no model",

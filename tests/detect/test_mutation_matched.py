@@ -699,3 +699,32 @@ def test_fit_noise_is_the_raw_samples_noise_before_the_arrival():
         assert not a.flags.any()
     assert sig[1.0] / sig[0.0] < 3.5
     assert 0.1 < np.mean(z**2) < 2.0
+
+
+def test_self_response_does_not_depend_on_the_precision():
+    """A float32 filter's self response is computed at float64 (its side lobes are
+    subtracted from float64 correlations of the window fits): the float64 filter's, bit
+    for bit."""
+    h = M.coded_template(fs=FS_US)
+    r64 = M.MatchedFilter(h, block=1024).self_response
+    r32 = M.MatchedFilter(h, block=1024, dtype="float32").self_response
+    assert r32.dtype == np.complex128
+    np.testing.assert_array_equal(r32, r64)
+
+
+def test_welch_spread_segments_include_the_first_and_the_last():
+    """A long recording's max_segments segments are spread over all of it, the first and
+    the last segment included: a tone in only those two shows in the mean PSD at 2/20 of
+    its level."""
+    rng = np.random.default_rng(12)
+    n_seg, nper = 400, 128
+    x = 0.01 * rng.standard_normal(n_seg * nper)
+    t = np.arange(nper) / FS
+    tone = np.sin(2 * np.pi * 250.0 * t)
+    for k in (0, n_seg - 1):
+        x[k * nper : (k + 1) * nper] += tone
+    s = M.welch_spectra(x, fs=FS, nperseg=nper, max_segments=20)
+    i250 = int(np.argmin(np.abs(s.f_hz - 250.0)))
+    w = np.hanning(nper + 1)[:-1]  # scipy's periodic Hann
+    one = 2.0 * np.abs(np.fft.rfft(tone * w)[i250]) ** 2 / (FS * float(w @ w))
+    assert s.mean[i250] == pytest.approx(2 / 20 * one, rel=0.05)
