@@ -134,21 +134,35 @@ def write_track(
     notes: tuple[str, ...] | list[str] = (),
     chosen: dict | None = None,
 ) -> None:
-    """Print (or write to ``-o``) the track as CSV, a table or JSON
-    (:func:`rangekit.io.tracks.format_track`), then the summary (a note, dropped by
-    ``--quiet``) and the warnings (always); with ``--verbose`` first the parameters used
-    (``chosen``, the library's defaults filled in)."""
-    from rangekit.io.tracks import format_track
+    """:func:`write_report` of a :class:`rangekit.io.tracks.TrackReport` of these parts."""
+    from rangekit.io.tracks import TrackReport
 
-    if chosen:
-        detail(
-            f"rangekit: track {filter_name}: " + ", ".join(f"{k} {v}" for k, v in chosen.items())
-        )
-    text = format_track(
-        columns, rows, fmt, filter_name=filter_name, log=log, smoothed=smoothed, extra=extra
+    report = TrackReport(
+        filter_name,
+        log,
+        columns,
+        rows,
+        smoothed=smoothed,
+        extra=extra or {},
+        summary=summary,
+        warnings=tuple(notes),
+        parameters=chosen or {},
     )
-    emit(text, output)
-    if summary:
-        note(summary)
-    for msg in notes:
+    write_report(report, fmt, output)
+
+
+def write_report(report, fmt: str, output: str | None) -> None:
+    """Print (or write to ``-o``) the track of a :class:`rangekit.io.tracks.TrackReport`
+    as CSV, a table or JSON, then its summary (a note, dropped by ``--quiet``) and its
+    warnings (always); with ``--verbose`` first the parameters used (the library's
+    defaults filled in)."""
+    if report.parameters:
+        detail(
+            f"rangekit: track {report.filter_name}: "
+            + ", ".join(f"{k} {v}" for k, v in report.parameters.items())
+        )
+    emit(report.format(fmt), output)
+    if report.summary:
+        note(report.summary)
+    for msg in report.warnings:
         warn(f"warning: {msg}")

@@ -14,17 +14,12 @@ from rangekit_cli.track_common import (
     output_options,
     parse_pose,
     rig_option,
-    write_track,
+    write_report,
 )
 
 from rangekit.localize.duhl import DUHLConfig
 
 _DEFAULTS = {f.name: f.default for f in dataclasses.fields(DUHLConfig)}
-
-#: Columns of the duhl and duhl-ranges tracks.
-DUHL_COLUMNS = (
-    "t_s", "x_m", "y_m", "heading_rad", "var_x_m2", "var_y_m2", "var_heading_rad2", "status",
-)  # fmt: skip
 
 
 def duhl_options(f):
@@ -113,12 +108,9 @@ def duhl_ranges_cmd(**kw):
 
 
 def _run(filter_, *, log, beacons, rig, initial_pose, gate, no_gate, fmt, output, **given):
-    import numpy as np
-
-    from rangekit.errors import IncompatibleInputError, InvalidParameterError, LogFormatError
+    from rangekit.errors import InvalidParameterError, LogFormatError
     from rangekit.io.duhllog import read_beacons, read_duhl_log
-    from rangekit.localize import _duhl_kernels as S
-    from rangekit.localize.duhl import rig_inputs, track_log
+    from rangekit.localize.duhl import rig_inputs, track_log, track_report
 
     gate_kw = {"gate_prob": g["gate"]} if "gate" in (g := gate_value(gate, no_gate)) else {}
     if beacons is None and rig is None:
@@ -143,56 +135,13 @@ def _run(filter_, *, log, beacons, rig, initial_pose, gate, no_gate, fmt, output
         variant="ranges" if filter_ == "duhl-ranges" else "duhl",
         **gate_kw,
     )
-    known = {int(i) for i in bcn.ids.tolist()}
-    d = dlog.distances
-    for t_s, tx in zip(d.t_s.tolist(), d.tx.tolist(), strict=True):
-        if int(tx) not in known:
-            raise IncompatibleInputError(
-                f"{name}: the distance row at t_s={t_s:g} names transmitter {int(tx)}, which "
-                f"is not in the beacon file {str(beacons)!r} (ids: {sorted(known)})"
-            )
     try:
-        trk = track_log(dlog, bcn, config=config, initial_pose=pose0)
+        trk = track_log(dlog, bcn, config=config, initial_pose=pose0, name=name,
+                        beacon_file=str(beacons))  # fmt: skip
     except InvalidParameterError as e:
         # The options are checked above, so what is left is the log itself (no odometry,
         # never two transmitters heard to start from).
         msg = str(e).replace("initial_pose not given", "--initial-pose not given")
         raise LogFormatError(f"{name}: the filter cannot run on this log: {msg}") from e
-
-    k0 = trk.start_index
-    cov = trk.cov[k0:]
-    rows = np.column_stack(
-        [trk.t_s[k0:], trk.pose[k0:], cov[:, 0, 0], cov[:, 1, 1], cov[:, 2, 2], trk.status[k0:]]
-    )
-    st = trk.obs_status
-    m = int(st.size)
-    used = int(np.count_nonzero(st == S.OBS_USED))
-    # Rejected as status bit 4 counts them: UHL undefined, residual too large, gated.
-    rejected = int(np.count_nonzero(np.isin(st, (S.OBS_DEGENERATE, S.OBS_RESIDUAL, S.OBS_GATED))))
-    before = int(np.count_nonzero(st == S.OBS_BEFORE_START))
-    none = m - used - rejected - before
-    warnings = list(trk.warnings)
-    summary = (
-        f"{filter_}: {rows.shape[0]} poses from t_s={trk.t_s[k0]:g}, {m} distance rows: "
-        f"{used} observations used, {rejected} rejected, {none} without an observation, "
-        f"{before} before the start; {len(warnings)} warnings"
-    )
-    extra = {
-        "beacons": str(beacons),
-        "start_t_s": float(trk.t_s[k0]),
-        "initial_pose": pose0,
-        "config": {
-            "wheel_base_m": config.wheel_base_m,
-            "sigma_d_m": config.sigma_d_m,
-            "k_v_m": config.k_v_m,
-            "gate": config.gate_prob,
-        },
-        "n_distance_rows": m,
-        "n_observations": used,
-        "n_rejected": rejected,
-        "n_without_observation": none,
-        "n_before_start": before,
-        "warnings": warnings,
-    }
-    write_track(DUHL_COLUMNS, rows, filter_name=filter_, log=name, fmt=fmt, output=output,
-                extra=extra, summary=summary, notes=warnings, chosen=extra["config"])  # fmt: skip
+    write_report(track_report(trk, log=name, beacons=str(beacons), initial_pose=pose0),
+                 fmt, output)  # fmt: skip

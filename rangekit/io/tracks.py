@@ -13,6 +13,12 @@ cell, JSON null); :func:`format_track` writes them:
 - ``json``: one object ``{"filter", "log", "smoothed", "columns", "rows", ...}`` with the
   tracker's further keys (``extra``) after them.
 
+:class:`TrackReport` is one run as ``rangekit track`` reports it: the table, the JSON
+keys after it, the one-line summary, the warnings and the parameters used (each
+tracker's ``track_report`` builds it: :func:`rangekit.localize.duhl.track_report`,
+:func:`rangekit.localize.range_ekf.track_report`, ...), so that the command only prints
+it.
+
 Examples
 --------
 >>> cols, rows = ("t_s", "x_m", "target"), [[0.0, 1.25, 0.0], [1.0, float("nan"), 1.0]]
@@ -29,10 +35,12 @@ from __future__ import annotations
 import json
 import math
 from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Any
 
 from rangekit.errors import InvalidParameterError
 
-__all__ = ["FORMATS", "INT_COLUMNS", "format_track", "track_table"]
+__all__ = ["FORMATS", "INT_COLUMNS", "TrackReport", "format_track", "track_table"]
 
 #: The formats of :func:`format_track`.
 FORMATS = ("table", "json", "csv")
@@ -101,3 +109,60 @@ def format_track(
         **(extra or {}),
     }
     return json.dumps(obj, indent=2) + "\n"
+
+
+@dataclass(frozen=True)
+class TrackReport:
+    """One tracker run as ``rangekit track`` reports it.
+
+    Attributes
+    ----------
+    filter_name : str
+        The filter (the subcommand's name, e.g. ``"duhl-ranges"``).
+    log : str
+        The input log's name.
+    columns, rows
+        The track table (``track_rows`` of the tracker).
+    smoothed : bool
+        Whether the rows are the smoothed track.
+    extra : dict
+        The JSON keys after ``rows`` (the tracker's diagnostics), in order.
+    summary : str or None
+        One line about the run (the command prints it on stderr unless ``--quiet``).
+    warnings : tuple of str
+        Plain-language warnings (printed on stderr, ``warning: `` first).
+    parameters : dict
+        The parameters used, the library's defaults filled in (printed by ``--verbose``).
+
+    Examples
+    --------
+    >>> import json
+    >>> r = TrackReport("lmax", "fixes.csv", ("t_s", "x_m"), [[0.0, 1.5]], extra={"n": 1})
+    >>> print(r.format("csv"), end="")
+    t_s,x_m
+    0.0,1.5
+    >>> json.loads(r.format("json"))["n"]
+    1
+    """
+
+    filter_name: str
+    log: str
+    columns: Sequence[str]
+    rows: Any
+    smoothed: bool = False
+    extra: dict = field(default_factory=dict)
+    summary: str | None = None
+    warnings: tuple[str, ...] = ()
+    parameters: dict = field(default_factory=dict)
+
+    def format(self, fmt: str) -> str:
+        """The track as text in ``fmt`` (:func:`format_track`)."""
+        return format_track(
+            self.columns,
+            self.rows,
+            fmt,
+            filter_name=self.filter_name,
+            log=self.log,
+            smoothed=self.smoothed,
+            extra=self.extra,
+        )

@@ -11,9 +11,10 @@ that Tx corrects (eqs (25)-(27)), that a newly heard Tx gets from the current po
 (eqs (28)-(30)), and that are discarded when ``max diag Q^i`` exceeds a threshold
 (eqs (31)-(32)).
 
-:func:`track_duhl` runs the whole filter over a log in one compiled call;
-:func:`uhl_last_two` is the paper's baseline, UHL on the raw distances of the last two
-Txs heard.
+:func:`track_duhl` runs the whole filter over a log in one compiled call
+(:func:`track_log` on a log file's contents); :func:`track_rows` is its table and
+:func:`track_report` what ``rangekit track duhl`` prints; :func:`uhl_last_two` is the
+paper's baseline, UHL on the raw distances of the last two Txs heard.
 
 Examples
 --------
@@ -50,13 +51,17 @@ __all__ = [
     "DEFAULT_DISCARD_VAR_M2",
     "OBS_STATUS",
     "PIONEER_WHEEL_BASE_M",
+    "TRACK_COLUMNS",
     "VARIANTS",
     "DUHLConfig",
     "DUHLTrack",
+    "ObservationCounts",
     "UHLLastTwo",
     "rig_inputs",
     "track_duhl",
     "track_log",
+    "track_report",
+    "track_rows",
     "uhl_last_two",
 ]
 
@@ -79,6 +84,12 @@ MAX_SPEED_MPS = 100.0
 MAX_COORD_M = 1e6
 #: Filters of :class:`DUHLConfig`.
 VARIANTS = ("duhl", "ranges")
+#: The ``rangekit track`` subcommand of each variant (the filter's name in reports).
+FILTER_NAMES = {"duhl": "duhl", "ranges": "duhl-ranges"}
+#: Columns of :func:`track_rows` (the ``rangekit track duhl`` and ``duhl-ranges`` output).
+TRACK_COLUMNS = (
+    "t_s", "x_m", "y_m", "heading_rad", "var_x_m2", "var_y_m2", "var_heading_rad2", "status",
+)  # fmt: skip
 #: Meaning of :attr:`DUHLTrack.obs_status` codes.
 OBS_STATUS = {
     K.OBS_USED: "used",
@@ -159,6 +170,32 @@ class DUHLConfig:
             )
 
 
+@dataclass(frozen=True)
+class ObservationCounts:
+    """What became of a track's distance rows (:meth:`DUHLTrack.observation_counts`).
+
+    Attributes
+    ----------
+    n_rows : int
+        Distance rows in the log.
+    used : int
+        Rows whose observation corrected the pose.
+    rejected : int
+        Rows whose observation was rejected, as status bit 4 counts them: UHL undefined
+        (transmitters at one point), residual too large, gated.
+    without : int
+        Rows that gave no observation (fewer than 2 transmitters, no finite distance).
+    before_start : int
+        Rows before the filter's start.
+    """
+
+    n_rows: int
+    used: int
+    rejected: int
+    without: int
+    before_start: int
+
+
 @dataclass
 class DUHLTrack:
     """Result of :func:`track_duhl`.
@@ -188,6 +225,8 @@ class DUHLTrack:
         Odometry row where the filter started.
     warnings : list of str
         Plain-language notes: long stretches without an observation, rejected rows.
+    config : DUHLConfig or None
+        The parameters used (set by :func:`track_duhl`).
     """
 
     t_s: np.ndarray
@@ -202,11 +241,32 @@ class DUHLTrack:
     obs_status: np.ndarray
     start_index: int
     warnings: list[str] = field(default_factory=list)
+    config: DUHLConfig | None = None
 
     @property
     def n_observations(self) -> int:
         """Number of UHL observations applied."""
         return int(np.count_nonzero(self.obs_status == K.OBS_USED))
+
+    def observation_counts(self) -> ObservationCounts:
+        """How many distance rows were used, rejected, gave no observation or came
+        before the start (:data:`OBS_STATUS` grouped).
+
+        Examples
+        --------
+        >>> st = np.array([K.OBS_BEFORE_START, K.OBS_USED, K.OBS_GATED, K.OBS_TOO_FEW])
+        >>> trk = DUHLTrack(*[np.zeros(1)] * 9, st, 0)
+        >>> trk.observation_counts()
+        ObservationCounts(n_rows=4, used=1, rejected=1, without=1, before_start=1)
+        """
+        st = self.obs_status
+        m = int(st.size)
+        used = int(np.count_nonzero(st == K.OBS_USED))
+        rejected = int(
+            np.count_nonzero(np.isin(st, (K.OBS_DEGENERATE, K.OBS_RESIDUAL, K.OBS_GATED)))
+        )
+        before = int(np.count_nonzero(st == K.OBS_BEFORE_START))
+        return ObservationCounts(m, used, rejected, m - used - rejected - before, before)
 
 
 @dataclass
@@ -452,6 +512,7 @@ def track_duhl(
         obs_n_tx=obs_ntx,
         obs_status=obs_status,
         start_index=start,
+        config=config,
     )
     track.warnings = _warnings(track)
     return track
@@ -464,11 +525,33 @@ def track_log(
     config: DUHLConfig | None = None,
     initial_pose=None,
     initial_cov=None,
+    name: str | None = None,
+    beacon_file: str | None = None,
 ) -> DUHLTrack:
     """:func:`track_duhl` on a :class:`~rangekit.io.duhllog.DUHLLog` and its
     :class:`~rangekit.io.duhllog.Beacons` (what :func:`~rangekit.io.duhllog.read_duhl_log`
-    and :func:`~rangekit.io.duhllog.read_beacons` return)."""
+    and :func:`~rangekit.io.duhllog.read_beacons` return).
+
+    ``name`` and ``beacon_file`` are the log's and the beacon file's names in error
+    messages.
+
+    Raises
+    ------
+    IncompatibleInputError
+        A distance row names a transmitter the beacons lack (its time and id named), or
+        the log has distances of more than three receivers.
+    InvalidParameterError
+        As :func:`track_duhl` (e.g. no start pose).
+    """
     o, d = log.odometry, log.distances
+    known = {int(i) for i in beacons.ids.tolist()}
+    for t_s, tx in zip(d.t_s.tolist(), d.tx.tolist(), strict=True):
+        if int(tx) not in known:
+            where = f"the beacon file {beacon_file!r}" if beacon_file else "the beacons"
+            raise IncompatibleInputError(
+                f"{name or 'the log'}: the distance row at t_s={t_s:g} names transmitter "
+                f"{int(tx)}, which is not in {where} (ids: {sorted(known)})"
+            )
     d_m = d.d_m
     if d_m.ndim == 2 and d_m.shape[1] > 3:  # a log written for a rig with more tags
         if np.any(np.isfinite(d_m[:, 3:])):
@@ -490,6 +573,81 @@ def track_log(
         initial_pose=initial_pose,
         initial_cov=initial_cov,
     )
+
+
+def track_rows(track: DUHLTrack) -> tuple[tuple[str, ...], np.ndarray]:
+    """:data:`TRACK_COLUMNS` and one row per odometry row from the start: time, pose,
+    the pose covariance's diagonal, status bits (:attr:`DUHLTrack.status`).
+
+    Examples
+    --------
+    >>> trk = DUHLTrack(np.array([0.0, 1.0]), np.ones((2, 3)), np.tile(np.eye(3), (2, 1, 1)),
+    ...                 np.array([0, 1]), *[np.zeros(0)] * 6, start_index=1)
+    >>> track_rows(trk)[1].tolist()
+    [[1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 1.0, 1.0]]
+    """
+    k0 = track.start_index
+    cov = track.cov[k0:]
+    rows = np.column_stack(
+        [track.t_s[k0:], track.pose[k0:], cov[:, 0, 0], cov[:, 1, 1], cov[:, 2, 2],
+         track.status[k0:]]
+    )  # fmt: skip
+    return TRACK_COLUMNS, rows
+
+
+def track_report(track: DUHLTrack, *, log: str, beacons: str, initial_pose=None):
+    """The track as ``rangekit track duhl`` (or ``duhl-ranges``) reports it: its rows, a
+    summary of the distance rows' fate, the warnings, and in JSON the beacon file, the
+    start, the parameters and the counts (:meth:`DUHLTrack.observation_counts`).
+
+    Parameters
+    ----------
+    track : DUHLTrack
+        A result of :func:`track_duhl` (it carries its config).
+    log, beacons : str
+        The log's and the beacon (or rig) file's names.
+    initial_pose : sequence of 3 floats, optional
+        The given start pose ``(x_m, y_m, heading_rad)``, as passed to :func:`track_log`.
+
+    Returns
+    -------
+    rangekit.io.tracks.TrackReport
+    """
+    from rangekit.io.tracks import TrackReport
+
+    if track.config is None:
+        raise InvalidParameterError("track has no config (a DUHLTrack from track_duhl has)")
+    config = track.config
+    name = FILTER_NAMES[config.variant]
+    columns, rows = track_rows(track)
+    c = track.observation_counts()
+    warnings = list(track.warnings)
+    t0 = track.t_s[track.start_index]
+    summary = (
+        f"{name}: {rows.shape[0]} poses from t_s={t0:g}, {c.n_rows} distance rows: "
+        f"{c.used} observations used, {c.rejected} rejected, {c.without} without an "
+        f"observation, {c.before_start} before the start; {len(warnings)} warnings"
+    )
+    parameters = {
+        "wheel_base_m": config.wheel_base_m,
+        "sigma_d_m": config.sigma_d_m,
+        "k_v_m": config.k_v_m,
+        "gate": config.gate_prob,
+    }
+    extra = {
+        "beacons": str(beacons),
+        "start_t_s": float(t0),
+        "initial_pose": None if initial_pose is None else [float(v) for v in initial_pose],
+        "config": parameters,
+        "n_distance_rows": c.n_rows,
+        "n_observations": c.used,
+        "n_rejected": c.rejected,
+        "n_without_observation": c.without,
+        "n_before_start": c.before_start,
+        "warnings": warnings,
+    }
+    return TrackReport(name, str(log), columns, rows, extra=extra, summary=summary,
+                       warnings=tuple(warnings), parameters=parameters)  # fmt: skip
 
 
 def _warnings(track: DUHLTrack) -> list[str]:
