@@ -123,6 +123,11 @@ OOB_RATIO = 100.0
 #: ambiguous by a whole spacing: the arrival is flagged ``ambiguous_first_path``
 #: (:func:`_shift_flags`; the statistic grows as the burst's energy, so 6 dB weaker).
 SHIFT_RATIO = 0.25
+#: A place one spacing beyond the beep where the band energy does not rise is tested all
+#: the same when it holds this fraction of a burst's energy (12 dB under): a burst there
+#: masked by a loud tone of the band (measured: a tone of 0.3 over a burst of 0.5 at
+#: 16 kHz left 55/256 of the burst's plateau, and a rise of 0.2-0.8 dB).
+MASK_RATIO = 1.0 / 16.0
 
 
 @dataclass(frozen=True)
@@ -707,19 +712,28 @@ def _rise_db(
 ) -> float | None:
     """Rise of the band energy at a burst starting at sample ``place``, dB in [0, 30]: the
     mean over the ``n_plat`` frames from a window after it over the mean over the 8 frames
-    ending a window before it (``cs``: cumulative sum of the ``n_e`` frames' energy, with a
-    leading 0). None where those frames leave the series or the plateau holds no energy.
+    ending a window before it (:func:`_levels`). None where those frames leave the series
+    or the plateau holds no energy.
     """
+    lv = _levels(place, cs, n_e, hop=hop, w=w, n_plat=n_plat)
+    if lv is None or not lv[0] > 0:
+        return None
+    return min(30.0, max(0.0, 10.0 * math.log10(lv[0] / max(lv[1], 1e-300))))
+
+
+def _levels(
+    place: float, cs: np.ndarray, n_e: int, *, hop: int, w: int, n_plat: int
+) -> tuple[float, float] | None:
+    """``(plateau, before)``: the mean band energy over the ``n_plat`` frames from a
+    window after sample ``place`` and over the 8 frames ending a window before it (``cs``:
+    cumulative sum of the ``n_e`` frames' energy, with a leading 0); None where those
+    frames leave the series."""
     f = int(round(place / hop))
     p0, p1 = f + w, f + w + n_plat
     q0, q1 = f - w - 8, f - w
     if q0 < 0 or p1 > n_e:
         return None
-    plat = (cs[p1] - cs[p0]) / (p1 - p0)
-    pre = (cs[q1] - cs[q0]) / (q1 - q0)
-    if not plat > 0:
-        return None
-    return min(30.0, max(0.0, 10.0 * math.log10(plat / max(pre, 1e-300))))
+    return float((cs[p1] - cs[p0]) / (p1 - p0)), float((cs[q1] - cs[q0]) / (q1 - q0))
 
 
 def _anchor_args(
@@ -1093,7 +1107,9 @@ def _shift_flags(
     which one the strengths favour is chance. Likewise a sound at ``t0 - s``. For each
     end, the place one spacing beyond the outermost burst found (from that burst's onset,
     at the nominal spacing) is tested: the band energy rising there (``_rise_db``,
-    ``MIN_RISE_DB``) and then the edge statistic (``_burst_stat``) over a taper plus the
+    ``MIN_RISE_DB``), or holding ``MASK_RATIO`` of a burst's energy at or just before it
+    (a burst masked by a loud tone of the band does not rise), and then the edge
+    statistic (``_burst_stat``, clipped samples left out) over a taper plus the
     bursts' allowed scatter either side; the place is a burst when that statistic peaks
     within the scatter, reaches the per-burst threshold and ``SHIFT_RATIO`` of the
     statistic of the burst a shifted beep would drop (the one at the other end; 0 when
@@ -1137,7 +1153,15 @@ def _shift_flags(
             place = float(row[k_n]) + (k_x - k_n) * spacing
             rise = _rise_db(place, cs, len(e), hop=hop, w=w, n_plat=n_plat)
             if rise is None or rise < MIN_RISE_DB:
-                continue
+                # No rise; but a burst masked by other sound of the band (a loud tone
+                # there already, which may cancel much of it) does not rise either:
+                # tested when the band holds, at the place or just before it,
+                # ``MASK_RATIO`` of the energy of the burst a shifted beep would drop.
+                lv = _levels(place, cs, len(e), hop=hop, w=w, n_plat=n_plat)
+                k_ref = k_r if np.isfinite(row[k_r]) else k_n
+                ref = _levels(float(row[k_ref]), cs, len(e), hop=hop, w=w, n_plat=n_plat)
+                if lv is None or ref is None or not max(lv) >= MASK_RATIO * ref[0]:
+                    continue
             p = int(round(place))
             if p - tol - sep < 0 or p + tol + sep >= len(cond.x):
                 continue
