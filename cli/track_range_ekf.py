@@ -11,12 +11,11 @@ from rangekit_cli.track_common import (
     gate_value,
     initial_pose_option,
     log_argument,
-    num,
     output_options,
     parse_pose,
     rig_option,
     smooth_option,
-    write_track,
+    write_report,
 )
 
 from rangekit.localize.anchor_ekf import track_anchors
@@ -139,46 +138,17 @@ def range_ekf_cmd(log, smooth, accel_psd, gate, no_gate, cross_sign, iterations,
 
 def _jiang(log, kw: dict, smooth: bool, fmt: str, output) -> None:
     from rangekit.io.tracklog import read_measurement_log
-    from rangekit.localize.range_ekf import track_rows
+    from rangekit.localize.range_ekf import track_report
 
     name = str(log)
     trk = track_ranges(read_measurement_log(log, name=name), smooth=smooth, name=name, **kw)
-    columns, rows = track_rows(trk, smoothed=smooth)
-    n_reinit = int(trk.n_reinit.sum())
-    summary = (
-        f"range-ekf: {trk.t_s.size} epochs, {trk.n_targets} targets, "
-        f"{len(trk.rejected)} ranges rejected by the gate, {n_reinit} targets re-opened, "
-        f"{trk.n_skipped} epochs skipped before the start"
-    )
-    extra = {
-        "rejected": [
-            {"t_s": r.t_s, "a": r.a, "b": r.b, "range_m": num(r.range_m), "nis": num(r.nis)}
-            for r in trk.rejected
-        ],
-        "n_targets": int(trk.n_targets),
-        "n_reinit": n_reinit,
-        "n_skipped": int(trk.n_skipped),
-        # one per row: the probability that the target is near the filtered position
-        # rather than on another branch of the bank (its mirror image)
-        "p_branch": [float(p) for p in trk.p_branch.reshape(-1)],
-    }
-    if smooth:
-        other = int(trk.same_line.size - trk.same_line.sum())
-        extra["n_epochs_other_branch"] = other
-        summary += (
-            f"; smoothed along the final best branch ({other} epochs where the causal "
-            "filter reported another)"
-        )
-    keys = ("accel_psd", "gate", "cross_sign", "iterations", "engine")
-    chosen = {k: kw.get(k, default(track_ranges, k)) for k in keys}
-    write_track(columns, rows, filter_name="range-ekf", log=name, fmt=fmt, output=output,
-                smoothed=smooth, extra=extra, summary=summary, chosen=chosen)  # fmt: skip
+    write_report(track_report(trk, log=name, smoothed=smooth, options=kw), fmt, output)
 
 
 def _with_rig(log, rig_path, initial_pose, robust, smooth, steps, fmt, output) -> None:
     """Fixed-anchor tracking (rangekit.localize.anchor_ekf) of a DUHL-format log."""
     from rangekit.io.duhllog import read_duhl_log
-    from rangekit.localize.anchor_ekf import track_rows
+    from rangekit.localize.anchor_ekf import track_report
     from rangekit.rig import read_rig
 
     rig = read_rig(rig_path)
@@ -201,40 +171,6 @@ def _with_rig(log, rig_path, initial_pose, robust, smooth, steps, fmt, output) -
         )
     kw = {} if robust is None else {"robust": robust}
     trk = track_anchors(dlog, rig, initial_pose=pose0, smooth=smooth, steps=slog, name=name, **kw)
-    robust = kw.get("robust", default(track_anchors, "robust"))
-    columns, rows = track_rows(trk, smoothed=smooth)
-    bias_txt = ", ".join(
-        f"{int(a)}: {b:+.3f}±{s:.3f}"
-        for a, b, s in zip(trk.anchor_ids, trk.bias_m, trk.bias_sigma_m, strict=True)
-    )
-    summary = (
-        f"range-ekf (rig {rig_path}): {trk.t_s.size} distance rows from t_s={trk.t_s[0]:g} "
-        f"(start: {trk.start}), {len(trk.downweighted)} ranges down-weighted ({robust}); "
-        f"range bias m per anchor {bias_txt}"
-    )
-    extra = {
-        "rig": str(rig_path),
-        "robust": robust,
-        "start": trk.start,
-        "start_t_s": float(trk.start_t_s),
-        "initial_pose": pose0,
-        "biases": [
-            {"anchor": int(a), "bias_m": float(b), "sigma_m": float(s)}
-            for a, b, s in zip(trk.anchor_ids, trk.bias_m, trk.bias_sigma_m, strict=True)
-        ],
-        "downweighted": [
-            {
-                "t_s": d.t_s,
-                "anchor": d.anchor,
-                "tag": d.tag,
-                "range_m": d.range_m,
-                "residual_m": d.residual_m,
-                "nu": d.nu,
-                "weight": d.weight,
-            }
-            for d in trk.downweighted
-        ],
-    }
-    chosen = {"rig": rig_path, "robust": robust, "initial_pose": pose0 or "from the ranges"}
-    write_track(columns, rows, filter_name="range-ekf", log=name, fmt=fmt, output=output,
-                smoothed=smooth, extra=extra, summary=summary, chosen=chosen)  # fmt: skip
+    rep = track_report(trk, log=name, rig=rig_path, robust=robust, initial_pose=pose0,
+                       smoothed=smooth)  # fmt: skip
+    write_report(rep, fmt, output)

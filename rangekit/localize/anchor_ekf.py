@@ -67,6 +67,7 @@ __all__ = [
     "odometry_step",
     "range_model",
     "track_anchors",
+    "track_report",
     "track_rows",
 ]
 
@@ -240,6 +241,46 @@ class AnchorTrack:
 
     def position_cov(self, *, smoothed: bool = False) -> np.ndarray:
         return self._pick(smoothed)[1][:, :2, :2]
+
+    def diagnostics(self) -> dict:
+        """What the filter reports besides the track (JSON keys of ``rangekit track
+        range-ekf --rig``): each anchor's range bias and 1-sigma, and every range
+        applied with weight < 1.
+
+        Examples
+        --------
+        >>> z = np.zeros((1, 2))
+        >>> trk = AnchorTrack(np.zeros(1), z, z[:, :, None], None, None, None, None,
+        ...                   np.ones(1, int), np.array([7]), np.array([0.1]),
+        ...                   np.array([0.02]), [], "given", 0.0, False)
+        >>> trk.diagnostics()
+        {'biases': [{'anchor': 7, 'bias_m': 0.1, 'sigma_m': 0.02}], 'downweighted': []}
+        """
+        return {
+            "biases": [
+                {"anchor": int(a), "bias_m": float(b), "sigma_m": float(s)}
+                for a, b, s in zip(self.anchor_ids, self.bias_m, self.bias_sigma_m, strict=True)
+            ],
+            "downweighted": [
+                {
+                    "t_s": d.t_s,
+                    "anchor": d.anchor,
+                    "tag": d.tag,
+                    "range_m": d.range_m,
+                    "residual_m": d.residual_m,
+                    "nu": d.nu,
+                    "weight": d.weight,
+                }
+                for d in self.downweighted
+            ],
+        }
+
+    def bias_text(self) -> str:
+        """The range biases as one line: ``ANCHOR: +BIAS±SIGMA`` (m, 3 decimals) per anchor."""
+        return ", ".join(
+            f"{int(a)}: {b:+.3f}±{s:.3f}"
+            for a, b, s in zip(self.anchor_ids, self.bias_m, self.bias_sigma_m, strict=True)
+        )
 
 
 # --------------------------------------------------------------------------- the filter
@@ -858,3 +899,58 @@ def track_rows(track: AnchorTrack, *, smoothed: bool = False) -> tuple[list[str]
          track.n_hypotheses]
     )  # fmt: skip
     return list(TRACK_COLUMNS), rows.reshape(-1, len(TRACK_COLUMNS))
+
+
+def track_report(
+    track: AnchorTrack,
+    *,
+    log: str,
+    rig: str,
+    robust: str | None = None,
+    initial_pose=None,
+    smoothed: bool = False,
+):
+    """The track as ``rangekit track range-ekf --rig`` reports it: :func:`track_rows`, a
+    summary (rows, start, ranges down-weighted, :meth:`AnchorTrack.bias_text`), and in
+    JSON the rig, the weighting, the start and :meth:`AnchorTrack.diagnostics`.
+
+    Parameters
+    ----------
+    track : AnchorTrack
+    log, rig : str
+        The log's and the rig file's names.
+    robust : str, optional
+        The ``robust`` given to :func:`track_anchors` (None: its default).
+    initial_pose : sequence of float, optional
+        The ``initial_pose`` given to :func:`track_anchors`.
+    smoothed : bool
+        Report the smoothed track.
+
+    Returns
+    -------
+    rangekit.io.tracks.TrackReport
+    """
+    import inspect
+
+    from rangekit.io.tracks import TrackReport
+
+    if robust is None:
+        robust = inspect.signature(track_anchors).parameters["robust"].default
+    pose0 = None if initial_pose is None else [float(v) for v in initial_pose]
+    columns, rows = track_rows(track, smoothed=smoothed)
+    summary = (
+        f"range-ekf (rig {rig}): {track.t_s.size} distance rows from t_s={track.t_s[0]:g} "
+        f"(start: {track.start}), {len(track.downweighted)} ranges down-weighted ({robust}); "
+        f"range bias m per anchor {track.bias_text()}"
+    )
+    extra = {
+        "rig": str(rig),
+        "robust": robust,
+        "start": track.start,
+        "start_t_s": float(track.start_t_s),
+        "initial_pose": pose0,
+        **track.diagnostics(),
+    }
+    parameters = {"rig": rig, "robust": robust, "initial_pose": pose0 or "from the ranges"}
+    return TrackReport("range-ekf", str(log), columns, rows, smoothed=smoothed, extra=extra,
+                       summary=summary, parameters=parameters)  # fmt: skip

@@ -86,6 +86,7 @@ __all__ = [
     "cv_transition",
     "measurement_covariance",
     "track_ranges",
+    "track_report",
     "track_rows",
 ]
 
@@ -880,6 +881,38 @@ class RangeTrack:
         s = self._check(target)
         return self.P_mix[:, s, s]
 
+    def diagnostics(self, *, smoothed: bool = False) -> dict:
+        """What the filter reports besides the track (the JSON keys of ``rangekit track
+        range-ekf``): the ranges the gate rejected, the target count, the targets
+        re-opened, the epochs skipped before the start, per row (epoch and target)
+        ``p_branch``, and with ``smoothed`` the epochs where the causal filter reported
+        another branch than the one smoothed along.
+
+        Examples
+        --------
+        >>> trk = RangeTrack(np.array([0.0]), np.zeros((1, 4)), np.eye(4)[None], None,
+        ...                  None, 1, np.zeros(1), [Rejected(0.0, 0, 1, 2.5, np.inf)],
+        ...                  np.zeros(1, int), 0, 1, p_branch=np.ones((1, 1)))
+        >>> trk.diagnostics()["rejected"]
+        [{'t_s': 0.0, 'a': 0, 'b': 1, 'range_m': 2.5, 'nis': None}]
+        """
+        out = {
+            "rejected": [
+                {"t_s": r.t_s, "a": r.a, "b": r.b, "range_m": _num(r.range_m), "nis": _num(r.nis)}
+                for r in self.rejected
+            ],
+            "n_targets": int(self.n_targets),
+            "n_reinit": int(self.n_reinit.sum()),
+            "n_skipped": int(self.n_skipped),
+            # one per row: the probability that the target is near the filtered position
+            # rather than on another branch of the bank (its mirror image)
+            "p_branch": [float(p) for p in self.p_branch.reshape(-1)],
+        }
+        if smoothed:
+            self._pick(True)  # refuses an unsmoothed track
+            out["n_epochs_other_branch"] = int(self.same_line.size - self.same_line.sum())
+        return out
+
     def _check(self, target: int) -> slice:
         if not 1 <= target <= self.n_targets:
             raise InvalidParameterError(f"target={target} must be in 1..{self.n_targets}")
@@ -1085,3 +1118,56 @@ def track_rows(track: RangeTrack, *, smoothed: bool = False) -> tuple[list[str],
                  Ps[k, o, o + 1]]
             )  # fmt: skip
     return list(TRACK_COLUMNS), np.array(out, dtype=np.float64).reshape(-1, len(TRACK_COLUMNS))
+
+
+def _num(v) -> float | None:
+    """A float for JSON (NaN and infinities as None)."""
+    f = float(v)
+    return f if math.isfinite(f) else None
+
+
+#: Keywords of :func:`track_ranges` a report lists as the parameters used.
+REPORT_PARAMETERS = ("accel_psd", "gate", "cross_sign", "iterations", "engine")
+
+
+def track_report(track: RangeTrack, *, log: str, smoothed: bool = False, options=None):
+    """The track as ``rangekit track range-ekf`` reports it: :func:`track_rows`, a summary
+    (epochs, targets, rejected ranges, re-opened targets, skipped epochs), the
+    :meth:`RangeTrack.diagnostics` in JSON, and the parameters used.
+
+    Parameters
+    ----------
+    track : RangeTrack
+    log : str
+        The measurement log's name.
+    smoothed : bool
+        Report the smoothed track (``track_ranges(..., smooth=True)``).
+    options : dict, optional
+        The keywords given to :func:`track_ranges`; the parameters listed are
+        :data:`REPORT_PARAMETERS`, its defaults where not given.
+
+    Returns
+    -------
+    rangekit.io.tracks.TrackReport
+    """
+    import inspect
+
+    from rangekit.io.tracks import TrackReport
+
+    options = options or {}
+    sig = inspect.signature(track_ranges).parameters
+    parameters = {k: options.get(k, sig[k].default) for k in REPORT_PARAMETERS}
+    columns, rows = track_rows(track, smoothed=smoothed)
+    extra = track.diagnostics(smoothed=smoothed)
+    summary = (
+        f"range-ekf: {track.t_s.size} epochs, {track.n_targets} targets, "
+        f"{len(track.rejected)} ranges rejected by the gate, {extra['n_reinit']} targets "
+        f"re-opened, {track.n_skipped} epochs skipped before the start"
+    )
+    if smoothed:
+        summary += (
+            f"; smoothed along the final best branch ({extra['n_epochs_other_branch']} "
+            "epochs where the causal filter reported another)"
+        )
+    return TrackReport("range-ekf", str(log), columns, rows, smoothed=smoothed, extra=extra,
+                       summary=summary, parameters=parameters)  # fmt: skip

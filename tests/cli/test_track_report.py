@@ -4,13 +4,20 @@ call (``track_report`` of the tracker) and the CLI give the same stdout and stde
 from __future__ import annotations
 
 import json
+import math
+from pathlib import Path
 
 import pytest
 from clihelp import ok, run
 
 from rangekit.io.duhllog import read_beacons, read_duhl_log
-from rangekit.localize import duhl
+from rangekit.io.tracklog import read_measurement_log
+from rangekit.localize import anchor_ekf, duhl, range_ekf
+from rangekit.rig import read_rig
+from rangekit.sim import jiang2018, rigs
 from rangekit.sim.kim2013 import simulate
+
+SQUARE = Path(__file__).resolve().parents[2] / "docs" / "rigs" / "one_tag_square.json"
 
 
 def _stderr(rep) -> str:
@@ -43,5 +50,62 @@ def test_duhl_prints_track_report(kim, sub, extra, kw, fmt):
     trk = duhl.track_log(read_duhl_log(log), read_beacons(bcn), config=duhl.DUHLConfig(**kw),
                          initial_pose=pose0)  # fmt: skip
     rep = duhl.track_report(trk, log=str(log), beacons=str(bcn), initial_pose=pose0)
+    assert r.stdout == rep.format(fmt)
+    assert r.stderr == _stderr(rep)
+
+
+@pytest.fixture(scope="module")
+def walk(tmp_path_factory):
+    p = tmp_path_factory.mktemp("walk") / "walk.csv"
+    p.write_text(jiang2018.simulate(rng=1).log.to_csv())
+    return p
+
+
+@pytest.mark.parametrize(
+    ("extra", "kw"),
+    [
+        ([], {}),
+        (["--smooth"], {}),
+        (["--gate", "0.3", "--iterations", "1"], {"gate": 0.3, "iterations": 1}),
+        (["--no-gate", "--engine", "python"], {"gate": None, "engine": "python"}),
+    ],
+)
+@pytest.mark.parametrize("fmt", ["csv", "json", "table"])
+def test_range_ekf_prints_track_report(walk, extra, kw, fmt):
+    r = ok(run(["track", "range-ekf", walk, "--format", fmt, "-v", *extra]))
+    smooth = "--smooth" in extra
+    trk = range_ekf.track_ranges(read_measurement_log(walk), smooth=smooth, name=str(walk), **kw)
+    rep = range_ekf.track_report(trk, log=str(walk), smoothed=smooth, options=kw)
+    assert r.stdout == rep.format(fmt)
+    verbose = "rangekit: track range-ekf: " + ", ".join(
+        f"{k} {v}" for k, v in rep.parameters.items()
+    )
+    assert r.stderr == f"{verbose}\n" + _stderr(rep)
+
+
+@pytest.fixture(scope="module")
+def robot(tmp_path_factory):
+    p = tmp_path_factory.mktemp("robot") / "robot.csv"
+    rigs.simulate_rig_run(rigs.square_rig(), duration_s=40, rng=3).log.to_csv(p)
+    return p
+
+
+@pytest.mark.parametrize(
+    ("extra", "kw"),
+    [
+        ([], {}),
+        (["--smooth", "--robust", "student-t"], {"robust": "student-t"}),
+        (["--initial-pose", "1,1,30", "--robust", "none"], {"robust": "none"}),
+    ],
+)
+@pytest.mark.parametrize("fmt", ["csv", "json"])
+def test_range_ekf_rig_prints_track_report(robot, extra, kw, fmt):
+    r = ok(run(["track", "range-ekf", "--rig", SQUARE, robot, "--format", fmt, *extra]))
+    smooth = "--smooth" in extra
+    pose0 = [1.0, 1.0, math.radians(30)] if "--initial-pose" in extra else None
+    trk = anchor_ekf.track_anchors(read_duhl_log(robot), read_rig(SQUARE), initial_pose=pose0,
+                                   smooth=smooth, name=str(robot), **kw)  # fmt: skip
+    rep = anchor_ekf.track_report(trk, log=str(robot), rig=str(SQUARE), initial_pose=pose0,
+                                  smoothed=smooth, **kw)  # fmt: skip
     assert r.stdout == rep.format(fmt)
     assert r.stderr == _stderr(rep)
