@@ -103,7 +103,10 @@ TESTS: dict[str, tuple[str, ...]] = {
         "tests/localize/test_ekf.py",
         "tests/localize/test_ekf_mutation.py",
     ),
-    "rangekit/detect/stagger.py": ("tests/detect/test_stagger.py",),
+    "rangekit/detect/stagger.py": (
+        "tests/detect/test_stagger.py",
+        "tests/detect/test_stagger_mutation.py",
+    ),
     "rangekit/detect/pathfit.py": ("tests/detect/test_pathfit.py",),
     "rangekit/detect/_pathfit_kernels.py": ("tests/detect/test_pathfit_kernels.py",),
     "rangekit/detect/_coherent.py": ("tests/detect/test_template_coherent.py",),
@@ -184,6 +187,9 @@ EQUIVALENT: dict[str, dict[tuple, str]] = {
         ("starts = starts[starts < n_samples]", "< -> <="):
             "a window starting at the end has length 0 and fails the half-period test",
         ("pool: bool = True,", "True -> False"): "both callers (oneway, echo) pass pool",
+    },
+    "rangekit/detect/stagger.py": {
+        ("if len(self._cache) > 64:", "64 -> 65"): "a cache's size: the same spectra",
     },
     "rangekit/physics.py": {
         ("c: float = field(init=False, repr=False, compare=False)", "False -> True", 2):
