@@ -7,7 +7,7 @@ import math
 
 import click
 from rangekit_cli._options import doc_page, shown_default
-from rangekit_cli.track_common import log_argument, output_options, rig_option, write_track
+from rangekit_cli.track_common import log_argument, output_options, rig_option, write_report
 
 from rangekit.localize.particle import (
     MAX_CANDIDATES,
@@ -112,7 +112,13 @@ def particle_cmd(log, steps, map_path, ranges, start, method, mode, particles, m
     from rangekit.errors import IncompatibleInputError, InvalidParameterError
     from rangekit.floorplan import load_floorplan
     from rangekit.io.steplog import read_range_log, read_step_log
-    from rangekit.localize.particle import rig_config, track_particles, track_rows
+    from rangekit.localize.particle import (
+        check_inputs,
+        default_mode,
+        rig_config,
+        track_particles,
+        track_report,
+    )
 
     if log is not None and steps is not None:
         raise click.UsageError("give the step log once: as STEPS.csv or as --steps, not both")
@@ -125,7 +131,7 @@ def particle_cmd(log, steps, map_path, ranges, start, method, mode, particles, m
             f"{start!r} must be two numbers X,Y (m), got {len(xy0)}", param_hint="--start"
         )
     if mode is None:
-        mode = "ranging" if ranges is not None else ("model" if map_path is not None else "imu")
+        mode = default_mode(plan=map_path is not None, ranges=ranges is not None)
     if mode in ("model", "ranging") and map_path is None:
         raise click.UsageError(f"--mode {mode} needs --map PLAN.json (the floor plan)")
     if mode == "ranging" and ranges is None:
@@ -157,44 +163,10 @@ def particle_cmd(log, steps, map_path, ranges, start, method, mode, particles, m
     slog = read_step_log(steps, name=str(steps))
     rlog = None if ranges is None else read_range_log(ranges, name=str(ranges))
     plan = None if map_path is None else load_floorplan(map_path)
-    n = len(config.mount_angles_rad)
-    if rlog is not None and rlog.n_sensors > n:
-        what = (
-            f"the rig {rig} has {n} tag(s)" if rig is not None else f"--mounts gives {n} sensor(s)"
-        )
-        raise IncompatibleInputError(
-            f"{ranges}: has readings of sensor {rlog.n_sensors - 1} but {what} "
-            f"(sensor indices 0..{n - 1})"
-        )
-    if plan is not None:
-        x0, y0, x1, y1 = plan.bounds
-        if not (x0 <= xy0[0] <= x1 and y0 <= xy0[1] <= y1):
-            raise IncompatibleInputError(
-                f"--start {xy0[0]:g},{xy0[1]:g} is outside the floor plan {map_path} "
-                f"(x {x0:g}..{x1:g}, y {y0:g}..{y1:g})"
-            )
+    check_inputs(plan, rlog, xy0, config, plan_name=str(map_path), ranges_name=str(ranges),
+                 rig_name=None if rig is None else str(rig), mounts_name="--mounts",
+                 start_name="--start")  # fmt: skip
     trk = track_particles(plan, slog, rlog, xy0, config, rng=seed)
-    columns, rows = track_rows(trk)
-    notes = [f"step {e.step} (t_s={e.t_s:g}): {e.message}" for e in trk.events]
-    summary = (
-        f"particle ({config.method}, {mode}): {rows.shape[0]} steps, "
-        f"nu={config.n_particles}, {len(trk.events)} re-initialisations"
-    )
-    extra = {
-        "method": config.method,
-        "mode": mode,
-        "map": None if map_path is None else str(map_path),
-        "ranges": None if ranges is None else str(ranges),
-        "rig": None if rig is None else str(rig),
-        "start_m": list(xy0),
-        "n_particles": config.n_particles,
-        "mounts_deg": [math.degrees(a) for a in config.mount_angles_rad],
-        "lever_arms_m": None if config.lever_arms_m is None else list(config.lever_arms_m),
-        "seed": seed,
-        "events": [
-            {"step": e.step, "t_s": e.t_s, "kind": e.kind, "message": e.message} for e in trk.events
-        ],
-    }
-    chosen = {k: extra[k] for k in ("method", "mode", "n_particles", "mounts_deg", "lever_arms_m")}
-    write_track(columns, rows, filter_name="particle", log=str(steps), fmt=fmt, output=output,
-                extra=extra, summary=summary, notes=notes, chosen=chosen)  # fmt: skip
+    rep = track_report(trk, log=str(steps), start_xy=xy0, plan=map_path, ranges=ranges,
+                       rig=rig, seed=seed)  # fmt: skip
+    write_report(rep, fmt, output)

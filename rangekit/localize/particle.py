@@ -39,7 +39,7 @@ from typing import Any
 import numpy as np
 
 from rangekit import _validate
-from rangekit.errors import InvalidParameterError
+from rangekit.errors import IncompatibleInputError, InvalidParameterError
 from rangekit.floorplan import FloorPlan
 from rangekit.io.steplog import RangeLog, StepLog
 from rangekit.sensors.srf02 import SRF02
@@ -56,11 +56,14 @@ __all__ = [
     "ParticleEvent",
     "ParticleTrack",
     "TrackingError",
+    "check_inputs",
+    "default_mode",
     "eq1_weights",
     "keep_best",
     "rig_config",
     "sample_motion_vectors",
     "track_particles",
+    "track_report",
     "track_rows",
     "tracking_error",
     "weighted_mean",
@@ -425,6 +428,138 @@ def track_rows(track: ParticleTrack) -> tuple[tuple[str, ...], np.ndarray]:
     """:data:`TRACK_COLUMNS` and one row per step: time, estimate, cloud size, spread."""
     rows = np.column_stack([track.t_s, track.xy_m, track.n_particles, track.spread_m])
     return TRACK_COLUMNS, rows
+
+
+def default_mode(*, plan: bool, ranges: bool) -> str:
+    """The mode the inputs given call for: ``"ranging"`` with range readings, else
+    ``"model"`` with a floor plan, else ``"imu"`` (``rangekit track particle`` without
+    ``--mode``).
+
+    Examples
+    --------
+    >>> default_mode(plan=True, ranges=True), default_mode(plan=True, ranges=False)
+    ('ranging', 'model')
+    >>> default_mode(plan=False, ranges=False)
+    'imu'
+    """
+    return "ranging" if ranges else ("model" if plan else "imu")
+
+
+def check_inputs(
+    plan: FloorPlan | None,
+    ranges: RangeLog | None,
+    start_xy: Any,
+    config: ParticleConfig,
+    *,
+    plan_name: str = "",
+    ranges_name: str = "the range log",
+    rig_name: str | None = None,
+    mounts_name: str = "mount_angles_rad",
+    start_name: str = "start_xy",
+) -> None:
+    """Check that the inputs fit each other before :func:`track_particles`: every sensor
+    index of the range log has a mount angle (a tag of the rig, ``rig_name``, when the
+    config came from :func:`rig_config`), and the start lies within the plan's bounds.
+
+    The names are those of the inputs in the messages (``rangekit track particle``
+    passes its files and options).
+
+    Raises
+    ------
+    IncompatibleInputError
+        The sensor index and the mount count, or the start and the plan's bounds, named.
+
+    Examples
+    --------
+    >>> from rangekit.floorplan import FloorPlan
+    >>> plan = FloorPlan.from_walls([((0, 0), (4, 0)), ((4, 0), (4, 3))])
+    >>> check_inputs(plan, None, (5.0, 1.0), ParticleConfig(), plan_name="plan.json")
+    ... # doctest: +ELLIPSIS
+    Traceback (most recent call last):
+    ...
+    rangekit.errors.IncompatibleInputError: start_xy 5,1 is outside ... (x 0..4, y 0..3)
+    """
+    n = len(config.mount_angles_rad)
+    if ranges is not None and ranges.n_sensors > n:
+        what = (
+            f"the rig {rig_name} has {n} tag(s)"
+            if rig_name is not None
+            else f"{mounts_name} gives {n} sensor(s)"
+        )
+        raise IncompatibleInputError(
+            f"{ranges_name}: has readings of sensor {ranges.n_sensors - 1} but {what} "
+            f"(sensor indices 0..{n - 1})"
+        )
+    if plan is not None:
+        xy0 = [float(v) for v in np.asarray(start_xy, dtype=np.float64).reshape(-1)]
+        x0, y0, x1, y1 = plan.bounds
+        if not (x0 <= xy0[0] <= x1 and y0 <= xy0[1] <= y1):
+            raise IncompatibleInputError(
+                f"{start_name} {xy0[0]:g},{xy0[1]:g} is outside the floor plan"
+                f"{f' {plan_name}' if plan_name else ''} "
+                f"(x {x0:g}..{x1:g}, y {y0:g}..{y1:g})"
+            )
+
+
+def track_report(
+    track: ParticleTrack,
+    *,
+    log: str,
+    start_xy: Any,
+    plan: str | None = None,
+    ranges: str | None = None,
+    rig: str | None = None,
+    seed: int | None = None,
+):
+    """The track as ``rangekit track particle`` reports it: :func:`track_rows`, a summary
+    (filter, mode, steps, ν, re-initialisations), each re-initialisation as a warning,
+    and in JSON the inputs, the parameters (:attr:`ParticleTrack.config`) and the events.
+
+    Parameters
+    ----------
+    track : ParticleTrack
+    log : str
+        The step log's name.
+    start_xy : sequence of 2 floats
+        The start given to :func:`track_particles`.
+    plan, ranges, rig : str, optional
+        The floor plan's, range log's and rig file's names (None: not given).
+    seed : int, optional
+        The random seed given (None: fresh entropy).
+
+    Returns
+    -------
+    rangekit.io.tracks.TrackReport
+    """
+    from rangekit.io.tracks import TrackReport
+
+    config = track.config
+    columns, rows = track_rows(track)
+    summary = (
+        f"particle ({config.method}, {config.mode}): {rows.shape[0]} steps, "
+        f"nu={config.n_particles}, {len(track.events)} re-initialisations"
+    )
+    extra = {
+        "method": config.method,
+        "mode": config.mode,
+        "map": None if plan is None else str(plan),
+        "ranges": None if ranges is None else str(ranges),
+        "rig": None if rig is None else str(rig),
+        "start_m": [float(v) for v in start_xy],
+        "n_particles": config.n_particles,
+        "mounts_deg": [math.degrees(a) for a in config.mount_angles_rad],
+        "lever_arms_m": None if config.lever_arms_m is None else list(config.lever_arms_m),
+        "seed": seed,
+        "events": [
+            {"step": e.step, "t_s": e.t_s, "kind": e.kind, "message": e.message}
+            for e in track.events
+        ],
+    }
+    parameters = {k: extra[k] for k in ("method", "mode", "n_particles", "mounts_deg",
+                                        "lever_arms_m")}  # fmt: skip
+    notes = tuple(f"step {e.step} (t_s={e.t_s:g}): {e.message}" for e in track.events)
+    return TrackReport("particle", str(log), columns, rows, extra=extra, summary=summary,
+                       warnings=notes, parameters=parameters)  # fmt: skip
 
 
 def tracking_error(xy_m: Any, truth_m: Any) -> TrackingError:

@@ -12,9 +12,9 @@ from clihelp import ok, run
 
 from rangekit.io.duhllog import read_beacons, read_duhl_log
 from rangekit.io.tracklog import read_measurement_log
-from rangekit.localize import anchor_ekf, duhl, range_ekf
+from rangekit.localize import anchor_ekf, duhl, particle, range_ekf
 from rangekit.rig import read_rig
-from rangekit.sim import jiang2018, rigs
+from rangekit.sim import girard2011, jiang2018, rigs
 from rangekit.sim.kim2013 import simulate
 
 SQUARE = Path(__file__).resolve().parents[2] / "docs" / "rigs" / "one_tag_square.json"
@@ -109,3 +109,43 @@ def test_range_ekf_rig_prints_track_report(robot, extra, kw, fmt):
                                   smoothed=smooth, **kw)  # fmt: skip
     assert r.stdout == rep.format(fmt)
     assert r.stderr == _stderr(rep)
+
+
+@pytest.fixture(scope="module")
+def girard(tmp_path_factory):
+    d = tmp_path_factory.mktemp("girard")
+    w = girard2011.simulate(rng=1)
+    (d / "plan.json").write_text(json.dumps(w.plan.to_json()))
+    (d / "steps.csv").write_text(w.steps.to_csv())
+    (d / "ranges.csv").write_text(w.ranges.to_csv())
+    return d, w
+
+
+@pytest.mark.parametrize(
+    ("extra", "kw"),
+    [
+        (["--map", "plan.json", "--ranges", "ranges.csv"], {}),
+        (["--map", "plan.json", "--method", "sir", "--particles", "300"],
+         {"mode": "model", "method": "sir", "n_particles": 300}),
+        (["--mounts", "10,20,30"], {"mode": "imu", "mount_angles_rad": tuple(
+            math.radians(a) for a in (10, 20, 30))}),
+    ],
+)  # fmt: skip
+@pytest.mark.parametrize("fmt", ["csv", "json", "table"])
+def test_particle_prints_track_report(girard, extra, kw, fmt):
+    d, w = girard
+    args = [str(d / a) if a.endswith((".json", ".csv")) else a for a in extra]
+    r = ok(run(["track", "particle", d / "steps.csv", "--start", "1.25,1", "--seed", 4,
+                "--format", fmt, "-v", *args]))  # fmt: skip
+    plan = str(d / "plan.json") if "--map" in extra else None
+    ranges = str(d / "ranges.csv") if "--ranges" in extra else None
+    cfg = particle.ParticleConfig(**kw)
+    trk = particle.track_particles(w.plan if plan else None, w.steps, w.ranges if ranges else None,
+                                   [1.25, 1.0], cfg, rng=4)  # fmt: skip
+    rep = particle.track_report(trk, log=str(d / "steps.csv"), start_xy=[1.25, 1.0], plan=plan,
+                                ranges=ranges, seed=4)  # fmt: skip
+    assert r.stdout == rep.format(fmt)
+    verbose = "rangekit: track particle: " + ", ".join(
+        f"{k} {v}" for k, v in rep.parameters.items()
+    )
+    assert r.stderr == f"{verbose}\n" + _stderr(rep)
