@@ -109,7 +109,10 @@ TESTS: dict[str, tuple[str, ...]] = {
     ),
     "rangekit/detect/pathfit.py": ("tests/detect/test_pathfit.py",),
     "rangekit/detect/_pathfit_kernels.py": ("tests/detect/test_pathfit_kernels.py",),
-    "rangekit/detect/_coherent.py": ("tests/detect/test_template_coherent.py",),
+    "rangekit/detect/_coherent.py": (
+        "tests/detect/test_template_coherent.py",
+        "tests/detect/test_coherent_mutation.py",
+    ),
     "rangekit/ranging/tof.py": (
         "tests/ranging/test_ultrasonic.py",
         "tests/ranging/test_tof_mutation.py",
