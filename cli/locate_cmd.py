@@ -17,11 +17,6 @@ from rangekit_cli._options import (
     warn,
 )
 
-#: Output fields, in order.
-FIELDS = ("x_m", "y_m", "heading_deg", "method_used", "residual_m")
-#: Added when the distances' sigma is known (--ranges or --sigma).
-SIGMA_FIELDS = ("sigma_x_m", "sigma_y_m", "sigma_heading_deg")
-
 
 def _uhl_default(name: str) -> dict:
     """``default``, ``show_default`` and ``cls`` of an option whose default is keyword
@@ -134,8 +129,7 @@ def locate_cmd(beacons, ranges, sigma, distances, tx_items, method, d_th, r_r, f
       rangekit locate --beacons ow.beacons.json --ranges r.csv
     """
     from rangekit.io.duhllog import read_beacons
-    from rangekit.io.guard import MAX_TABLE_BYTES, is_stdin, read_stdin
-    from rangekit.io.results import format_rows
+    from rangekit.io.guard import is_stdin
     from rangekit.localize.locate import locate_pose, read_distance_table, read_range_rows
 
     given = [
@@ -155,9 +149,7 @@ def locate_cmd(beacons, ranges, sigma, distances, tx_items, method, d_th, r_r, f
         ids, d = read_distance_table(distances, name=source)
     elif ranges is not None:
         source = "standard input" if is_stdin(ranges) else str(ranges)
-        # Standard input is JSON when it starts with an object, else CSV.
-        js = read_stdin(MAX_TABLE_BYTES).lstrip().startswith(b"{") if is_stdin(ranges) else None
-        r = read_range_rows(ranges, name=source, json=js)
+        r = read_range_rows(ranges, name=source)  # standard input: JSON if it starts with {
         if r.dropped:
             warn(
                 f"rangekit: {source}: transmitter(s) {', '.join(map(str, r.dropped))} left out "
@@ -176,27 +168,7 @@ def locate_cmd(beacons, ranges, sigma, distances, tx_items, method, d_th, r_r, f
         read_beacons(beacons), ids, d, sigma_m=sig, r_R=r_r, method=method, d_th=d_th,
         source=source, beacon_file=str(beacons),
     )  # fmt: skip
-    row = pose.row()
-    if fmt == "json":
-        import json
-
-        obj = {
-            **row,
-            "heading_rad": pose.heading_rad,
-            "method": method,
-            "d_th_m": d_th,
-            "r_R_m": r_r,
-            "beacons": str(beacons),
-            "tx": ids,
-        }
-        if pose.covariance is not None:
-            obj["covariance"] = pose.covariance.tolist()
-        text = json.dumps(obj, indent=2) + "\n"
-    else:
-        text = format_rows(
-            [row], FIELDS + (SIGMA_FIELDS if pose.covariance is not None else ()), fmt
-        )
-    emit(text, output)
+    emit(pose.format(fmt), output)
 
 
 def _parse_tx(items) -> tuple[list[int], list[list[float]]]:

@@ -35,16 +35,31 @@ import numpy as np
 
 from rangekit.errors import IncompatibleInputError, InvalidParameterError, LogFormatError
 
-__all__ = ["DISTANCE_COLUMNS", "Located", "locate_pose", "read_distance_table", "read_range_rows"]
+__all__ = [
+    "DISTANCE_COLUMNS",
+    "FIELDS",
+    "SIGMA_FIELDS",
+    "Located",
+    "locate_pose",
+    "read_distance_table",
+    "read_range_rows",
+]
 
 #: Header of a distance table.
 DISTANCE_COLUMNS = ("tx", "d1_m", "d2_m", "d3_m")
+#: The fields of :meth:`Located.row`, in order (the ``rangekit locate`` table).
+FIELDS = ("x_m", "y_m", "heading_deg", "method_used", "residual_m")
+#: Added when the covariance is known (the distances' sigma given).
+SIGMA_FIELDS = ("sigma_x_m", "sigma_y_m", "sigma_heading_deg")
 
 
 @dataclass(frozen=True)
 class Located:
     """A solved pose: position (m), heading, the UHL branch used, the fit residual (m),
-    and the 3 x 3 covariance of ``(x_m, y_m, heading_rad)`` (None without sigmas)."""
+    and the 3 x 3 covariance of ``(x_m, y_m, heading_rad)`` (None without sigmas); and
+    how it was solved: the method asked for, the hybrid threshold and receiver radius
+    used (m), the transmitter ids in order, the beacon file's name (what
+    :func:`locate_pose` was given, its defaults filled in)."""
 
     x_m: float
     y_m: float
@@ -52,6 +67,11 @@ class Located:
     method_used: str
     residual_m: float
     covariance: np.ndarray | None = None
+    method: str = "hybrid"
+    d_th_m: float | None = None
+    r_R_m: float | None = None
+    tx: tuple[int, ...] = ()
+    beacon_file: str = ""
 
     @property
     def heading_deg(self) -> float:
@@ -74,6 +94,40 @@ class Located:
                 sigma_heading_deg=math.degrees(float(sd[2])),
             )
         return out
+
+    def fields(self) -> tuple[str, ...]:
+        """The keys of :meth:`row`: :data:`FIELDS`, and :data:`SIGMA_FIELDS` with a
+        covariance."""
+        return FIELDS + (SIGMA_FIELDS if self.covariance is not None else ())
+
+    def to_json(self) -> dict:
+        """The JSON object of ``rangekit locate --format json``: :meth:`row`, then
+        ``heading_rad``, ``method``, ``d_th_m``, ``r_R_m``, ``beacons`` (the file's name),
+        ``tx`` (the ids used, in order) and with sigmas ``covariance`` (3 x 3 lists)."""
+        obj = {
+            **self.row(),
+            "heading_rad": self.heading_rad,
+            "method": self.method,
+            "d_th_m": self.d_th_m,
+            "r_R_m": self.r_R_m,
+            "beacons": self.beacon_file,
+            "tx": list(self.tx),
+        }
+        if self.covariance is not None:
+            obj["covariance"] = self.covariance.tolist()
+        return obj
+
+    def format(self, fmt: str) -> str:
+        """The result as ``rangekit locate`` prints it: ``"json"`` (:meth:`to_json`,
+        indented), or ``"table"`` / ``"csv"`` of :meth:`row`
+        (:func:`rangekit.io.results.format_rows`, the number rules of every verb)."""
+        if fmt == "json":
+            import json
+
+            return json.dumps(self.to_json(), indent=2) + "\n"
+        from rangekit.io.results import format_rows
+
+        return format_rows([self.row()], self.fields(), fmt)
 
 
 def locate_pose(
@@ -127,11 +181,13 @@ def locate_pose(
             f"{source}: {len(ids)} transmitter(s) heard; UHL needs at least 2 (Kim & Kim "
             "2013, eq (3))"
         )
-    kw = {"method": method}
-    if r_R is not None:
-        kw["r_R"] = r_R
-    if d_th is not None:
-        kw["d_th"] = d_th
+    from rangekit.localize.uhl import DEFAULT_D_TH_M, R_R_M
+
+    kw = {
+        "method": method,
+        "r_R": R_R_M if r_R is None else r_R,
+        "d_th": DEFAULT_D_TH_M if d_th is None else d_th,
+    }
     xyz = beacons.position(ids)
     try:
         pose = solve_pose(xyz, distances_m, **kw)
@@ -155,6 +211,11 @@ def locate_pose(
         str(pose.method_used),
         float(pose.residual_m),
         cov,
+        method=method,
+        d_th_m=kw["d_th"],
+        r_R_m=kw["r_R"],
+        tx=tuple(ids),
+        beacon_file=beacon_file,
     )
 
 
@@ -188,7 +249,8 @@ def read_range_rows(path: str | os.PathLike, *, name: str | None = None, json: b
     """Per transmitter, the distances and sigmas of ``rangekit range --scheme oneway
     --tx-order ...`` output (CSV or JSON: ``json=None`` decides by the ``.json`` suffix),
     as :class:`rangekit.localize.uhl_cov.UHLInputs` (median over the windows; the
-    transmitters a receiver never heard listed in ``dropped``).
+    transmitters a receiver never heard listed in ``dropped``). Standard input (``-``)
+    is JSON when it starts with ``{``, else CSV, unless ``json`` says.
 
     Raises
     ------
@@ -196,10 +258,15 @@ def read_range_rows(path: str | os.PathLike, *, name: str | None = None, json: b
         Not that output (the columns or keys named).
     """
     from rangekit.io.csvlog import Column, read_table
+    from rangekit.io.guard import MAX_TABLE_BYTES, is_stdin, read_stdin
     from rangekit.localize.uhl_cov import uhl_inputs
 
     name = name or str(path)
-    if json if json is not None else name.endswith(".json"):
+    if json is None and is_stdin(path):
+        json = read_stdin(MAX_TABLE_BYTES).lstrip().startswith(b"{")
+    elif json is None:
+        json = name.endswith(".json")
+    if json:
         from rangekit.io.sidecar import read_json
 
         obj = read_json(path)  # guarded: regular file, size, nesting, finite numbers
