@@ -96,6 +96,7 @@ def test_matched_trace_of_a_channel_and_window():
     ``latency + [min, max] / c``; a window or channel beyond the recording is refused."""
     from rangekit.detect.matched import MatchedFilter, coded_template
     from rangekit.ranging.ultrasonic import range_oneway
+    from rangekit.signals.barker import CodedBurst
 
     sim = render_oneway([[1.0, 0.3, 2.5]], (0.0, 0.0, 0.0), snr_db=30.0, period_s=0.03,
                         order=[0], n_windows=2, latency_s=LATENCY_S, rng=2)  # fmt: skip
@@ -110,6 +111,11 @@ def test_matched_trace_of_a_channel_and_window():
     np.testing.assert_allclose(tr.envelope, env, rtol=0, atol=1e-12 * env.max())
     c = speed_of_sound_m_s(20.0)
     assert tr.search_s == pytest.approx((LATENCY_S + 0.5 / c, LATENCY_S + 7.0 / c), rel=1e-12)
+    b = CodedBurst(cycles_per_bit=2)  # a burst given: its template, not the default's
+    tb = matched_trace(sim.x, fs=sim.fs, scheme="oneway", channel=1, window=1, burst=b, **kw)
+    hb = coded_template(b, fs=sim.fs, tx=Transducer(), rx=Transducer())
+    env = np.abs(MatchedFilter(hb).correlate(sim.x[1]))[n : 2 * n]
+    np.testing.assert_allclose(tb.envelope, env, rtol=0, atol=1e-12 * env.max())
     for bad in ({"window": 2}, {"channel": 3}, {"channel": -1}):
         with pytest.raises(IncompatibleInputError, match="does not exist"):
             matched_trace(sim.x, fs=sim.fs, scheme="oneway", **{**kw, **bad})
