@@ -27,6 +27,7 @@ from rangekit_cli._synth_options import (
     describe_seed,
     impair_option,
     parse_point,
+    scenario_default,
     write,
 )
 from rangekit_cli.synth_ultrasonic_cmd import synth_echo, synth_oneway
@@ -53,16 +54,14 @@ synth.add_command(synth_echo)
 @click.option(
     "--self-distance",
     type=float,
-    default=0.1,
-    show_default=True,
     help="Speaker-to-mic distance, m.",
+    **scenario_default("synth_beepbeep", "self_distance_m"),
 )
 @click.option(
     "--snr-db",
     type=float,
-    default=20.0,
-    show_default=True,
     help="SNR of the weakest direct beep, dB.",
+    **scenario_default("synth_beepbeep", "snr_db"),
 )
 @click.option("--no-noise", is_flag=True, help="Render without noise.")
 @click.option("--noise", type=click.Choice(["white", "pink"]), default="white", show_default=True)
@@ -70,14 +69,16 @@ synth.add_command(synth_echo)
     "--room", default=None, metavar="LX,LY,LZ", help="Shoebox room size in metres (reflections)."
 )
 @click.option(
-    "--absorption", type=float, default=0.3, show_default=True, help="Wall energy absorption."
+    "--absorption",
+    type=float,
+    help="Wall energy absorption.",
+    **scenario_default("ShoeboxRoom", "absorption"),
 )
 @click.option(
     "--order",
     type=click.IntRange(0, 12),
-    default=1,
-    show_default=True,
     help="Image-source reflection order, at most 12 (the images grow as (2 order + 1)^3).",
+    **scenario_default("ShoeboxRoom", "max_order"),
 )
 @temperature_option
 @click.option(
@@ -87,7 +88,10 @@ synth.add_command(synth_echo)
     help="Sample-clock error per device, ppm [default: 0].",
 )
 @click.option(
-    "--fs", type=float, default=44100.0, show_default=True, help="Recording sample rate, Hz."
+    "--fs",
+    type=float,
+    help="Recording sample rate, Hz.",
+    **scenario_default("synth_beepbeep", "fs"),
 )
 @click.option("--mono", is_flag=True, help="Write one mono WAV per device (NAME_devI.wav).")
 @click.option(

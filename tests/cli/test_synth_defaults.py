@@ -58,3 +58,17 @@ def test_a_run_uses_them(tmp_path):
     assert setup["period_s"] == lib["period_s"].default == 0.2  # the paper's 5 Hz
     assert setup["latency_s"] == lib["latency_s"].default
     assert setup["tx_order"] == list(range(len(scenarios.DEFAULT_TXS)))  # six transmitters
+
+
+def test_synth_beepbeep_shows_the_librarys_defaults(monkeypatch):
+    """``synth beepbeep``'s --self-distance, --snr-db, --fs, --absorption and --order come
+    from :func:`rangekit.sim.scenarios.synth_beepbeep` and :class:`ShoeboxRoom` too."""
+    bb = _with_defaults(scenarios.synth_beepbeep, self_distance_m=0.15, snr_db=25.0, fs=48000.0)
+    monkeypatch.setattr(scenarios, "synth_beepbeep", bb)
+    monkeypatch.setattr(rangekit.sim, "ShoeboxRoom", _with_defaults(rangekit.sim.ShoeboxRoom,
+                        absorption=0.45, max_order=2))  # fmt: skip
+    text = _help("beepbeep")
+    for shown in ("distance, m. [default: 0.15]", "direct beep, dB. [default: 25.0]",
+                  "rate, Hz. [default: 48000.0]", "absorption. [default: 0.45]",
+                  "grow as (2 order + 1)^3). [default: 2;"):  # fmt: skip
+        assert shown in text, shown
