@@ -13,6 +13,8 @@ __all__ = [
     "doc_page",
     "float_list",
     "id_list",
+    "library_default",
+    "library_help",
     "number_option",
     "shown_default",
 ]
@@ -25,6 +27,36 @@ def shown_default(value) -> str:
     ('[default: 0.05]', '[default: no gate]')
     """
     return f"[default: {value:g}]" if isinstance(value, float) else f"[default: {value}]"
+
+
+def library_default(path: str, name: str | None = None):
+    """A default of the library, read where it is defined instead of copied: the default
+    of field or keyword ``name`` of the dataclass or function at ``path``
+    (``"module:attr"``), or with no ``name`` the constant there.
+
+    >>> library_default("rangekit.signals.barker:CodedBurst", "carrier_hz")
+    40000.0
+    >>> library_default("rangekit.signals.probe:DEFAULT_FADE_S")
+    0.005
+    """
+    import importlib
+    import inspect
+
+    module, attr = path.split(":")
+    obj = getattr(importlib.import_module(module), attr)
+    if name is None:
+        return obj
+    fields = getattr(obj, "__dataclass_fields__", None)
+    if fields is not None:
+        return fields[name].default
+    return inspect.signature(obj).parameters[name].default
+
+
+def library_help(text: str, value) -> dict:
+    """``cls`` and ``lazy_help`` of an option whose help is ``text`` and then the default
+    ``value()`` (e.g. a :func:`library_default`) as every help shows defaults, read when
+    help is shown (so the command module imports no library)."""
+    return {"cls": LazyHelpOption, "lazy_help": lambda: f"{text} {shown_default(value())}."}
 
 
 def doc_page(name: str) -> str:

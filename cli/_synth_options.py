@@ -14,6 +14,7 @@ from rangekit_cli._options import (
     transducer_q_options,
     verbosity_options,
 )
+from rangekit_cli._options_types import library_default
 
 
 def _impair_spec(ctx, param, value):
@@ -75,13 +76,10 @@ def scenario_default(func: str, name: str, convert=None) -> dict:
     a field of :class:`rangekit.sim.ShoeboxRoom`), read when the command runs or shows
     help (:class:`LazyHelpOption`), not copied; ``convert`` maps it to the option's unit."""
 
+    path = "rangekit.sim:ShoeboxRoom" if func == "ShoeboxRoom" else f"rangekit.sim.scenarios:{func}"
+
     def read():
-        import inspect
-
-        from rangekit.sim import ShoeboxRoom, scenarios
-
-        fn = ShoeboxRoom if func == "ShoeboxRoom" else getattr(scenarios, func)
-        value = inspect.signature(fn).parameters[name].default
+        value = library_default(path, name)
         return value if convert is None else convert(value)
 
     return {"default": read, "show_default": True, "cls": LazyHelpOption}

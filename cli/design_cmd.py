@@ -11,6 +11,18 @@ from rangekit_cli._options import (
     note,
     verbosity_options,
 )
+from rangekit_cli._options_types import LazyHelpOption, library_default, library_help
+
+BURST = "rangekit.signals.barker:CodedBurst"
+SWEEP = "rangekit.signals.probe:linear_sweep"
+FADE = "rangekit.signals.probe:DEFAULT_FADE_S"
+
+
+def _code_default() -> str:
+    """The default code of :class:`rangekit.signals.CodedBurst` as ``--code`` takes it."""
+    from rangekit.signals.codes import code_text
+
+    return code_text(library_default(BURST, "code"))
 
 
 @click.group("design")
@@ -26,7 +38,10 @@ def design():
     "fs",
     type=FiniteRange(1000.0, 1e7),
     default=None,
-    help="Sample rate of the file, Hz [default: the beep's, 44100].",
+    **library_help(
+        "Sample rate of the file, Hz",
+        lambda: f"the beep's, {library_default('rangekit.signals:Beep', 'fs'):g}",
+    ),
 )
 @click.option(
     "-o", "--output", type=click.Path(dir_okay=False), required=True, help="WAV file to write."
@@ -66,17 +81,20 @@ def design_beep(amplitude, fs, output, **beep_kw):
     "--code",
     default=None,
     metavar="N|+-...",
-    help="A Barker length (2,3,4,5,7,11,13) or chips as + and - [default: 7].",
+    **library_help("A Barker length (2,3,4,5,7,11,13) or chips as + and -", _code_default),
 )
 @click.option(
-    "--carrier", type=FiniteRange(1.0, 1e7), default=None, help="Carrier, Hz [default: 40000]."
+    "--carrier",
+    type=FiniteRange(1.0, 1e7),
+    default=None,
+    **library_help("Carrier, Hz", lambda: library_default(BURST, "carrier_hz")),
 )
 @click.option(
     "--cycles-per-bit",
     "cycles_per_bit",
     type=click.IntRange(1, 1000),
     default=None,
-    help="Carrier cycles per chip [default: 3].",
+    **library_help("Carrier cycles per chip", lambda: library_default(BURST, "cycles_per_bit")),
 )
 @click.option(
     "--amplitude", type=FiniteRange(0.0, 1.0), default=0.9, show_default=True, help="Peak level."
@@ -85,8 +103,9 @@ def design_beep(amplitude, fs, output, **beep_kw):
     "--fs",
     "fs",
     type=FiniteRange(1000.0, 1e7),
-    default=192000.0,
+    default=lambda: library_default(BURST, "fs"),
     show_default=True,
+    cls=LazyHelpOption,
     help="Sample rate of the file, Hz; must carry the code's main lobe.",
 )
 @click.option(
@@ -147,8 +166,9 @@ def design_barker(code, carrier, cycles_per_bit, amplitude, fs, output):
     "--fs",
     "fs",
     type=FiniteRange(1000.0, 1e7),
-    default=44100.0,
+    default=lambda: library_default(SWEEP, "fs"),
     show_default=True,
+    cls=LazyHelpOption,
     metavar="HZ",
     help="Sample rate of the file, Hz; both frequencies must lie below fs / 2.",
 )
@@ -157,8 +177,11 @@ def design_barker(code, carrier, cycles_per_bit, amplitude, fs, output):
     type=FiniteRange(0.0, 300.0),
     default=None,
     metavar="S",
-    help="Raised-cosine fade at each end, s, at most half of --duration "
-    "[default: min(0.005, duration / 10)].",
+    cls=LazyHelpOption,
+    lazy_help=lambda: (
+        "Raised-cosine fade at each end, s, at most half of --duration "
+        f"[default: min({library_default(FADE):g}, duration / 10)]."
+    ),
 )
 @click.option(
     "--amplitude",
