@@ -191,6 +191,11 @@ EQUIVALENT: dict[str, dict[tuple, str]] = {
             "a window starting at the end has length 0 and fails the half-period test",
         ("pool: bool = True,", "True -> False"): "both callers (oneway, echo) pass pool",
     },
+    "rangekit/detect/_coherent.py": {
+        ("while b - a > 1e-4:", "> -> >="): "the interval, 2 g^k wide, is never exactly 1e-4",
+        ("if f1 >= f2:", ">= -> >"):
+            "at a tie the extremum lies between x1 and x2, which either branch keeps",
+    },
     "rangekit/detect/stagger.py": {
         ("if len(self._cache) > 64:", "64 -> 65"): "a cache's size: the same spectra",
     },

@@ -85,3 +85,22 @@ def test_coherent_interp_rms_of_a_symmetric_self_response_is_small():
     n = np.arange(-64.0, 65.0)
     r = np.exp(-0.5 * (n / 4.0) ** 2) * np.exp(2j * np.pi * 0.12 * n)
     assert C.coherent_interp_rms(r, 3) < 0.01
+
+
+def test_refine_extremum_next_to_the_ends():
+    """Indices 1 and len - 2 are refined (with the taps the array holds: measured 0.07 and
+    0.15 samples off a peak at 1.3 and 38.3); only the end samples are returned as they are."""
+    n = np.arange(40.0)
+    for t0, i, tol in ((1.3, 1, 0.15), (38.3, 38, 0.25)):
+        r = np.exp(-0.5 * ((n - t0) / 2.5) ** 2) * np.cos(2 * np.pi * 0.1 * (n - t0))
+        assert C.refine_extremum(r, i) == pytest.approx(t0, abs=tol), t0
+
+
+def test_coherent_lag_searches_reach_either_side():
+    """An extremum of the real part exactly ``reach`` samples before or after the given
+    lag (or between) is found there."""
+    n = np.arange(64.0)
+    for p in (29.0, 35.0, 34.6):
+        c = np.exp(-0.5 * ((n - p) / 3.0) ** 2) * np.exp(2j * np.pi * 0.15 * (n - p))
+        t, _ = C.coherent_lag(c, 32.0, 3)
+        assert t == pytest.approx(p, abs=1e-3), p
