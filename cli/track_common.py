@@ -114,12 +114,6 @@ def parse_pose(text: str | None, n: int) -> list[float] | None:
     return [vals[0], vals[1], math.radians(vals[2])] if n == 3 else vals
 
 
-def num(v: float) -> float | None:
-    """A float for JSON (NaN and infinities as null)."""
-    f = float(v)
-    return f if math.isfinite(f) else None
-
-
 def write_track(
     columns,
     rows,
