@@ -772,10 +772,16 @@ def _branch_probability(X, P, w, rep: int, j: int, lines) -> float:
         dist = (X[:, o] - p0) @ nrm
         sig = np.sqrt(np.maximum(np.einsum("i,hij,j->h", nrm, P[:, o, o], nrm), 1e-24))
         s = 1.0 if dist[rep] >= 0 else -1.0
-        return float(w @ (0.5 * _erfc(-s * dist / sig / math.sqrt(2.0))))
+        return _unit(float(w @ (0.5 * _erfc(-s * dist / sig / math.sqrt(2.0)))))
     sig = math.sqrt(max(np.trace(P[rep][o, o]) / 2, 0.0))
     near = np.hypot(*(X[:, o] - X[rep, o]).T) <= max(1.0, 3 * sig)
-    return float(w[near].sum())
+    return _unit(float(w[near].sum()))
+
+
+def _unit(p: float) -> float:
+    """A probability summed from weights, clipped to [0, 1] (their sum's rounding gave
+    1.0000000000000002)."""
+    return min(1.0, max(0.0, p))
 
 
 _erfc = np.vectorize(math.erfc, otypes=[np.float64])

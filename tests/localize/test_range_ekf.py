@@ -434,3 +434,19 @@ def test_compiled_bank_equals_the_python_bank_and_the_numpy_reference():
             assert np.allclose(getattr(a, f), getattr(b, f), rtol=0, atol=1e-8), (e, f)
         assert np.array_equal(a.n_reinit, b.n_reinit) and a.n_line_mirrors == b.n_line_mirrors
         assert [r.t_s for r in a.rejected] == [r.t_s for r in b.rejected]
+
+
+def test_branch_probability_never_exceeds_one():
+    """The weights sum to 1 only up to rounding: these five summed to 1.0000000000000002,
+    which reached ``p_branch`` in the JSON; a probability stays in [0, 1]."""
+    from rangekit.localize.range_ekf import _branch_probability
+
+    w = np.array([0.33447075301917856, 0.001122687042822074, 0.35150506188686553,
+                  0.013768883651057343, 0.2991326144000766])  # fmt: skip
+    assert w.sum() > 1.0
+    X = np.zeros((5, 8))
+    P = np.tile(np.eye(8) * 0.01, (5, 1, 1))
+    far_line = [np.array([4.0, 0.0, 100.0, 1.0, 0.0])]  # every hypothesis far on one side
+    for lines in ([], far_line):
+        p = _branch_probability(X, P, w, 0, 1, lines)
+        assert 0.0 <= p <= 1.0 and p == 1.0
