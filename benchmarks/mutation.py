@@ -190,6 +190,12 @@ EQUIVALENT: dict[str, dict[tuple, str]] = {
         ("starts = starts[starts < n_samples]", "< -> <="):
             "a window starting at the end has length 0 and fails the half-period test",
         ("pool: bool = True,", "True -> False"): "both callers (oneway, echo) pass pool",
+        ("first_window: int = 0,", "0 -> 1"): "both callers pass first_window",
+        ("q0: float = 4.0,", "4.0 -> 8.0"): "both callers pass q0",
+        ("per_channel = [with_order_terms(f, t) for f, t in zip(cf, terms, strict=True)]",
+         "True -> False"): "order_terms gives one term per channel: strict never raises",
+        ("found = dict(zip(arr.window.tolist(), range(len(arr)), strict=True))",
+         "True -> False"): "both have len(arr) items: strict never raises",
     },
     "rangekit/detect/_coherent.py": {
         ("while b - a > 1e-4:", "> -> >="): "the interval, 2 g^k wide, is never exactly 1e-4",
