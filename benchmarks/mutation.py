@@ -107,7 +107,10 @@ TESTS: dict[str, tuple[str, ...]] = {
         "tests/detect/test_stagger.py",
         "tests/detect/test_stagger_mutation.py",
     ),
-    "rangekit/detect/pathfit.py": ("tests/detect/test_pathfit.py",),
+    "rangekit/detect/pathfit.py": (
+        "tests/detect/test_pathfit.py",
+        "tests/detect/test_pathfit_mutation.py",
+    ),
     "rangekit/detect/_pathfit_kernels.py": ("tests/detect/test_pathfit_kernels.py",),
     "rangekit/detect/_coherent.py": (
         "tests/detect/test_template_coherent.py",
