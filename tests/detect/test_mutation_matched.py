@@ -728,3 +728,15 @@ def test_welch_spread_segments_include_the_first_and_the_last():
     w = np.hanning(nper + 1)[:-1]  # scipy's periodic Hann
     one = 2.0 * np.abs(np.fft.rfft(tone * w)[i250]) ** 2 / (FS * float(w @ w))
     assert s.mean[i250] == pytest.approx(2 / 20 * one, rel=0.05)
+
+
+def test_fit_snr_is_the_arrivals_snr():
+    """With a model the SNR column is the fit's, amplitude x sqrt(template energy) / noise
+    sigma: within 0.19 dB of that closed form in every window (measured; the matched
+    filter's own peak SNR, which the column held before the fit, is off by up to 0.55 dB
+    on the same windows)."""
+    for srel in (0.02, 0.05, 0.1):
+        x, h, model, sigma, win = _q4_windows([6000] * 6, 12000, srel, 1)
+        a = M.detect_matched(x, fs=FS_US, template=h, windows=win, model=model, pool=False)
+        closed = 20 * np.log10(np.sqrt(np.sum(h**2)) / sigma)
+        assert np.abs(a.snr_db - closed).max() < 0.3, (srel, a.snr_db, closed)
