@@ -599,7 +599,7 @@ def welch_spectra(
     percentile of the segments' periodograms, divided by ``-ln(1 - q / 100)`` (the mean
     of an exponential variable, the law of one bin of noise, whose ``q``-th percentile it
     is), stays the noise level while arrivals occupy up to about ``1 - q / 100`` of the
-    segments at a frequency. Segments of digital silence (energy below ``rel_zero``
+    segments at a frequency. Segments of digital silence (energy at or below ``rel_zero``
     times the largest segment's) are left out, so zero padding does not pull the noise to
     zero. Long recordings are represented by ``max_segments`` segments spread evenly over
     them; short ones use shorter segments (down to 128 samples) to have at least
@@ -619,7 +619,7 @@ def welch_spectra(
     q : float
         Percentile of the noise estimate.
     rel_zero : float
-        Relative energy below which a segment counts as digital silence (default 1e-18,
+        Relative energy at or below which a segment counts as digital silence (default 1e-18,
         -180 dB: exact zeros and rounding residue, never a quiet noise floor).
 
     Returns
