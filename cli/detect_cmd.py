@@ -84,9 +84,8 @@ def detect_cmd(files, detector, template, expected, min_separation, weighting, f
       rangekit detect --template sweep.wav --expected 2 --format json dev1.wav
       rangekit detect --template tone.wav --min-separation 0.5 log64k.wav
     """
-    from rangekit.detect import detect
-    from rangekit.io.audio import read_audio
-    from rangekit.io.results import arrivals_rows, format_arrivals
+    from rangekit.detect.files import detect_files
+    from rangekit.errors import DetectionError
 
     ctx = click.get_current_context()
     if template is not None:
@@ -103,31 +102,17 @@ def detect_cmd(files, detector, template, expected, min_separation, weighting, f
                 raise click.UsageError(f"{opt} applies to --template only")
     probe = load_template(template)
     signal = probe if probe is not None else make_beep(beep_kw)
-    kw = {"min_separation_s": min_separation} if min_separation is not None else {}
-    if weighting is not None:
-        kw["weighting"] = weighting
     sig = f"template '{template}'" if probe is not None else "the beep"
     exp = f", at most {expected} per channel" if expected is not None else ""
     detail(f"rangekit: detect: {sig} by {method}{exp}")
-    rows, empty = [], []
-    for f in files:
-        x, fs = read_audio(f)
-        for ch in range(x.shape[1]):
-            what = f"'{f}'"
-            arr = detect(
-                x[:, ch], fs=fs, signal=signal, method=method, expected=expected, what=what, **kw
-            )
-            if len(arr) == 0:
-                empty.append(f"{f}#{ch}")
-            rows += arrivals_rows(arr, file=str(f), channel=ch)
-    meta = {"detector": method}
-    if probe is not None:
-        meta["template"] = template
-    if expected is not None:
-        meta["expected"] = expected
-    if not (empty and output is not None):  # a failed run leaves -o FILE untouched
-        emit(format_arrivals(rows, fmt, meta=meta), output)
-    if empty:
-        what = "no beep" if probe is None else f"no arrival of '{template}'"
-        click.echo(f"rangekit: error: {what} found in {', '.join(empty)}", err=True)
-        raise SystemExit(6)
+    run = detect_files(
+        files, signal=signal, method=method, expected=expected,
+        min_separation_s=min_separation, weighting=weighting,
+    )  # fmt: skip
+    if not (run.empty and output is not None):  # a failed run leaves -o FILE untouched
+        emit(run.format(fmt), output)
+    try:
+        run.finish()  # DetectionError naming the channels without an arrival
+    except DetectionError as e:  # exit 6 with its line, as before, even with --debug
+        click.echo(f"rangekit: error: {e}", err=True)
+        raise SystemExit(e.exit_code) from None
