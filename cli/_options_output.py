@@ -72,9 +72,8 @@ def debug_option(f):
 
 def input_paths(ctx: click.Context, kw: dict) -> list[str]:
     """Every path the command reads: its arguments and its ``click.Path`` options other
-    than ``-o`` (``a.wav+b.wav@0.5`` counts as ``a.wav`` and ``b.wav``)."""
-    import re
-
+    than ``-o`` (``a.wav+b.wav@0.5`` counts as ``a.wav`` and ``b.wav``: the files of a
+    recording spec, :func:`rangekit.ranging.calibration.recording_paths`)."""
     out: list[str] = []
     for p in ctx.command.params:
         if p.name == "output" or p.name not in kw:
@@ -85,7 +84,10 @@ def input_paths(ctx: click.Context, kw: dict) -> list[str]:
         for item in v if isinstance(v, (list, tuple)) else (v,):
             if isinstance(item, str):
                 out.append(item)
-                out.extend(t for t in re.split(r"[+@]", item) if t and t != item)
+                if "+" in item or "@" in item:  # a plain path needs no parser (nor numpy)
+                    from rangekit.ranging.calibration import recording_paths
+
+                    out.extend(t for t in recording_paths(item) if t and t != item)
     return out
 
 

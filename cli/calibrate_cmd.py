@@ -26,23 +26,15 @@ from rangekit_cli.ultrasonic_options import (
 
 
 def parse_recording(text: str, default_m: float | None) -> tuple[list[str], float]:
-    """``PATH[+PATH][@M]`` -> (paths, distance); an existing path is never split."""
-    from pathlib import Path
+    """``PATH[+PATH][@M]`` -> (paths, distance), by the library's parser
+    (:func:`rangekit.ranging.calibration.parse_recording`); --distance when no @M."""
+    from rangekit.errors import InvalidParameterError
+    from rangekit.ranging.calibration import parse_recording as parse
 
-    dist = default_m
-    spec = text
-    if not Path(text).exists() and "@" in text:
-        head, tail = text.rsplit("@", 1)
-        try:
-            dist = float(tail)
-        except ValueError:
-            raise click.BadParameter(
-                f"{text!r}: the distance after '@' must be a number of metres"
-            ) from None
-        if not (0.0 < dist < 1e4):
-            raise click.BadParameter(f"{text!r}: the distance must be positive, in metres")
-        spec = head
-    paths = [spec] if Path(spec).exists() else spec.split("+")
+    try:
+        paths, dist = parse(text, default_m)
+    except InvalidParameterError as e:
+        raise click.BadParameter(str(e)) from None
     if dist is None:
         raise click.UsageError(f"no distance for {text!r}: give --distance M or write it as FILE@M")
     return paths, dist

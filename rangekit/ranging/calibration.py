@@ -67,7 +67,9 @@ __all__ = [
     "Measurement",
     "fit_calibration",
     "measure_recordings",
+    "parse_recording",
     "read_calibration",
+    "recording_paths",
 ]
 
 #: Schemes a calibration applies to.
@@ -464,6 +466,66 @@ def _spread(r: np.ndarray, var: np.ndarray, n_par: int) -> float:
     return float(np.sum(r * r / var) / dof) if dof > 0 else 1.0
 
 
+def _split_recording(text: str) -> tuple[list[str], str | None]:
+    """``PATH[+PATH][@M]`` -> (paths, the text after '@' or None); syntax only."""
+    from pathlib import Path
+
+    tail = None
+    spec = text
+    if not Path(text).exists() and "@" in text:
+        spec, tail = text.rsplit("@", 1)
+    return ([spec] if Path(spec).exists() else spec.split("+")), tail
+
+
+def recording_paths(text: str) -> list[str]:
+    """The files a recording spec (:func:`parse_recording`) names; its distance unchecked.
+
+    Examples
+    --------
+    >>> recording_paths("dev0.wav+dev1.wav@2.5"), recording_paths("one.wav")
+    (['dev0.wav', 'dev1.wav'], ['one.wav'])
+    """
+    return _split_recording(text)[0]
+
+
+def parse_recording(text: str, default_m: float | None = None) -> tuple[list[str], float | None]:
+    """A recording at a known distance, written ``PATH[+PATH][@M]`` (``rangekit calibrate``).
+
+    ``PATH`` is one file, ``PATH+PATH`` the two devices' mono files (device 0 first); ``@M``
+    gives its distance in metres (else ``default_m``, which may be None). A path that
+    exists is never split, so files whose names hold ``+`` or ``@`` are read as they are.
+    The result is one item of :func:`measure_recordings`' ``recordings``.
+
+    Raises
+    ------
+    InvalidParameterError
+        The text after ``@`` is not a number, or not a distance in (0, 10 km).
+
+    Examples
+    --------
+    >>> parse_recording("dev0.wav+dev1.wav@2.5")
+    (['dev0.wav', 'dev1.wav'], 2.5)
+    >>> parse_recording("one.wav", 1.0), parse_recording("one.wav")
+    ((['one.wav'], 1.0), (['one.wav'], None))
+    >>> parse_recording("one.wav@-1")
+    Traceback (most recent call last):
+    ...
+    rangekit.errors.InvalidParameterError: 'one.wav@-1': the distance must be positive, in metres
+    """
+    paths, tail = _split_recording(text)
+    if tail is None:
+        return paths, default_m
+    try:
+        dist = float(tail)
+    except ValueError:
+        raise InvalidParameterError(
+            f"{text!r}: the distance after '@' must be a number of metres"
+        ) from None
+    if not (0.0 < dist < 1e4):
+        raise InvalidParameterError(f"{text!r}: the distance must be positive, in metres")
+    return paths, dist
+
+
 def measure_recordings(
     recordings: Sequence[tuple[Sequence[str | os.PathLike], float]],
     *,
@@ -479,7 +541,8 @@ def measure_recordings(
     Parameters
     ----------
     recordings : sequence of (paths, distance_m)
-        Each recording with its known distance. Two-way: one file with the two devices'
+        Each recording with its known distance (:func:`parse_recording` reads one from
+        ``PATH[+PATH][@M]``). Two-way: one file with the two devices'
         channels, or the two devices' mono files (device 0 first). One-way: one file; every
         (window, channel) with an arrival is one measurement.
     scheme : {"beepbeep", "oneway"}
