@@ -41,6 +41,12 @@ def _one_thread_per_worker() -> None:
         os.environ.setdefault(var, "1")
 
 
+# When the command is loaded, before its options are parsed: the check of -o loads numpy
+# (rangekit.io), after which the setting came too late for the parent and the workers it
+# forks (docs/batch.md: each process computes on one thread).
+_one_thread_per_worker()
+
+
 @click.command("batch")
 @click.argument("inputs", nargs=-1, required=True, metavar="INPUT...")
 @click.option(
@@ -144,7 +150,6 @@ def batch_cmd(
       rangekit batch logs/ --scheme echo --period 0.07 -o echo.csv
       rangekit batch --pair-by-name phone_a/ phone_b/ -o pairs.csv --self-distance 0.1
     """
-    _one_thread_per_worker()
     from rangekit_cli._options import detail, is_quiet
 
     from rangekit.batch import find_sessions, pair_sessions_by_name, run_batch
