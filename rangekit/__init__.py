@@ -71,6 +71,7 @@ SECTIONS: dict[str, dict[str, tuple[str, str]]] = {
         "detect_changepoint": ("rangekit.detect", "detect_changepoint"),
         "detect_xcorr": ("rangekit.detect", "detect_xcorr"),
         "detect_template": ("rangekit.detect.template", "detect_template"),
+        "detect_files": ("rangekit.detect.files", "detect_files"),
     },
     "Ranging": {
         "run_range": ("rangekit.ranging", "run_range"),
@@ -92,6 +93,7 @@ SECTIONS: dict[str, dict[str, tuple[str, str]]] = {
         "range_echo": ("rangekit.ranging.ultrasonic", "range_echo"),
         "OneWaySetup": ("rangekit.ranging.config", "OneWaySetup"),
         "EchoSetup": ("rangekit.ranging.config", "EchoSetup"),
+        "ultrasonic_setup": ("rangekit.ranging.ultrasonic_setup", "ultrasonic_setup"),
         "Detection": ("rangekit.ranging.config", "Detection"),
         "speed_of_sound_m_s": ("rangekit.physics", "speed_of_sound_m_s"),
     },
@@ -116,6 +118,8 @@ SECTIONS: dict[str, dict[str, tuple[str, str]]] = {
         "write_audio": ("rangekit.io", "write_audio"),
         "load_devices": ("rangekit.io", "load_devices"),
         "RowWriter": ("rangekit.io.stream", "RowWriter"),
+        "format_track": ("rangekit.io.tracks", "format_track"),
+        "TrackReport": ("rangekit.io.tracks", "TrackReport"),
     },
     "Simulation": {
         "render_beepbeep": ("rangekit.sim", "render_beepbeep"),
