@@ -18,6 +18,7 @@ from rangekit_cli._options import (
     template_option,
     verbosity_options,
 )
+from rangekit_cli._options_types import LazyHelpOption, library_default
 from rangekit_cli.ultrasonic_options import (
     refuse_ultrasonic_options,
     ultrasonic_options,
@@ -68,8 +69,9 @@ def parse_recording(text: str, default_m: float | None) -> tuple[list[str], floa
 @click.option(
     "--tolerance",
     type=FiniteRange(0.0, 1.0),
-    default=0.005,
+    default=lambda: library_default("rangekit.ranging.calibration:DEFAULT_TOLERANCE_M"),
     show_default=True,
+    cls=LazyHelpOption,
     metavar="M",
     help="1-sigma of the known distances (how well the devices were placed), m.",
 )
@@ -128,7 +130,7 @@ def calibrate_cmd(
     from rangekit_cli._options import load_template
 
     from rangekit.io.results import format_calibration
-    from rangekit.ranging.calibration import fit_calibration, measure_recordings
+    from rangekit.ranging.calibration import calibrate_recordings
     from rangekit.ranging.config import Medium
 
     probe = load_template(template)
@@ -147,20 +149,11 @@ def calibrate_cmd(
         setup = ultrasonic_setup(kw, scheme=scheme)
         if kw.get("channels") is None:
             setup = replace(setup, channels=None)  # a calibration rig: any receivers
-        args = setup.kwargs()
-        del args["latency_s"]  # what the calibration fits
-    meas = []
+        args = {"setup": setup}
     with progress(len(recs), "calibrate", unit="files") as bar:
-        for rec in recs:  # one at a time, for the progress line; the same measurements
-            meas += measure_recordings([rec], scheme=scheme, probe=probe, speed_m_s=c, **args)
-            bar.update(1)
-    cal = fit_calibration(
-        meas,
-        scheme=scheme,
-        speed_m_s=c,
-        fit_speed=fit_speed,
-        tolerance_m=tolerance,
-        probe=None if probe is None else probe.name,
-    )
+        cal = calibrate_recordings(
+            recs, scheme=scheme, speed_m_s=c, probe=probe, fit_speed=fit_speed,
+            tolerance_m=tolerance, progress=bar.report, **args,
+        )  # fmt: skip
     cal.write(output)
     click.echo(format_calibration(cal, fmt), nl=False)

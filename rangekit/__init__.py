@@ -88,6 +88,7 @@ SECTIONS: dict[str, dict[str, tuple[str, str]]] = {
         "correct_clock": ("rangekit.ranging.clock", "correct_clock"),
         "Calibration": ("rangekit.ranging.calibration", "Calibration"),
         "fit_calibration": ("rangekit.ranging.calibration", "fit_calibration"),
+        "calibrate_recordings": ("rangekit.ranging.calibration", "calibrate_recordings"),
         "read_calibration": ("rangekit.ranging.calibration", "read_calibration"),
         "range_oneway": ("rangekit.ranging.ultrasonic", "range_oneway"),
         "range_echo": ("rangekit.ranging.ultrasonic", "range_echo"),

@@ -65,6 +65,7 @@ __all__ = [
     "OUTLIER_SIGMA",
     "Calibration",
     "Measurement",
+    "calibrate_recordings",
     "fit_calibration",
     "measure_recordings",
     "parse_recording",
@@ -601,3 +602,69 @@ def measure_recordings(
             src = f"{name} (window {r['window']}, channel {r['channel']})"
             out.append(Measurement(src, float(dist), r["arrival_s"], r["sigma_m"] / c))
     return out
+
+
+def calibrate_recordings(
+    recordings: Sequence[tuple[Sequence[str | os.PathLike], float]],
+    *,
+    scheme: str = "beepbeep",
+    speed_m_s: float,
+    probe=None,
+    beep=None,
+    detector: str = "changepoint",
+    setup=None,
+    fit_speed: bool | None = None,
+    tolerance_m: float = DEFAULT_TOLERANCE_M,
+    progress=None,
+) -> Calibration:
+    """Measure recordings at known distances and fit their calibration: the whole job of
+    ``rangekit calibrate`` (:func:`measure_recordings`, then :func:`fit_calibration`).
+
+    Parameters
+    ----------
+    recordings : sequence of (paths, distance_m)
+        As :func:`measure_recordings` (:func:`parse_recording` reads one item).
+    scheme : {"beepbeep", "oneway", "echo"}
+    speed_m_s : float
+        The speed of sound the arrival times are converted with (and the fit's starting
+        one when it fits the speed).
+    probe : Probe, optional
+        The played probe (a template), else the beep.
+    beep, detector
+        Two-way: the beep played and the detector (``probe`` None).
+    setup : OneWaySetup or EchoSetup, optional
+        One-way / echo: the job (default: the scheme's defaults,
+        :func:`rangekit.ranging.ultrasonic_setup.ultrasonic_setup`). Its latency is left out:
+        it is what a one-way calibration fits.
+    fit_speed, tolerance_m
+        As :func:`fit_calibration`.
+    progress : callable, optional
+        ``progress(done, total)`` after each recording is measured.
+
+    Returns
+    -------
+    Calibration
+        The fit; :class:`CalibrationError` (exit 7) when it is refused.
+    """
+    if scheme == "beepbeep":
+        args: dict = {"beep": beep, "detector": detector}
+    else:
+        if setup is None:
+            from rangekit.ranging.ultrasonic_setup import ultrasonic_setup
+
+            setup = ultrasonic_setup(scheme)
+        args = setup.kwargs()
+        args.pop("latency_s", None)  # what the calibration fits
+    meas: list[Measurement] = []
+    for i, rec in enumerate(recordings):  # one at a time, for progress: the same result
+        meas += measure_recordings([rec], scheme=scheme, probe=probe, speed_m_s=speed_m_s, **args)
+        if progress is not None:
+            progress(i + 1, len(recordings))
+    return fit_calibration(
+        meas,
+        scheme=scheme,
+        speed_m_s=speed_m_s,
+        fit_speed=fit_speed,
+        tolerance_m=tolerance_m,
+        probe=None if probe is None else probe.name,
+    )

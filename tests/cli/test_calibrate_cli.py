@@ -243,3 +243,29 @@ def test_oneway_calibrate_then_range(tmp_path):
     assert abs(d - truth["t"]) < 0.01
     r = run([*args, "--latency", 0.01, "-o", tmp_path / "x.json"])
     assert_error(r, 2, "--latency")
+    # the command is one library call: the same calibration from calibrate_recordings
+    from dataclasses import replace
+
+    from rangekit.ranging.calibration import calibrate_recordings, parse_recording
+    from rangekit.ranging.config import Medium
+    from rangekit.ranging.ultrasonic_setup import ultrasonic_setup
+    from rangekit.signals import read_probe
+
+    calls = []
+    lib = calibrate_recordings(
+        [parse_recording(x) for x in recs], scheme="oneway", speed_m_s=Medium().c,
+        probe=read_probe(sweep), setup=replace(ultrasonic_setup("oneway"), channels=None),
+        fit_speed=False, progress=lambda done, total: calls.append((done, total)),
+    )  # fmt: skip
+    assert json.loads(json.dumps(lib.to_dict())) == got
+    assert calls == [(1, 3), (2, 3), (3, 3)]
+
+
+def test_tolerance_default_is_the_librarys(monkeypatch):
+    """--tolerance shows and uses rangekit.ranging.calibration.DEFAULT_TOLERANCE_M (not a
+    copy of it)."""
+    from rangekit.ranging import calibration
+
+    monkeypatch.setattr(calibration, "DEFAULT_TOLERANCE_M", 0.0125)
+    text = " ".join(ok(run(["calibrate", "--help"])).stdout.split())
+    assert "placed), m. [default: 0.0125;" in text
