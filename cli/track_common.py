@@ -114,37 +114,6 @@ def parse_pose(text: str | None, n: int) -> list[float] | None:
     return [vals[0], vals[1], math.radians(vals[2])] if n == 3 else vals
 
 
-def write_track(
-    columns,
-    rows,
-    *,
-    filter_name: str,
-    log: str,
-    fmt: str,
-    output: str | None,
-    smoothed: bool = False,
-    extra: dict | None = None,
-    summary: str | None = None,
-    notes: tuple[str, ...] | list[str] = (),
-    chosen: dict | None = None,
-) -> None:
-    """:func:`write_report` of a :class:`rangekit.io.tracks.TrackReport` of these parts."""
-    from rangekit.io.tracks import TrackReport
-
-    report = TrackReport(
-        filter_name,
-        log,
-        columns,
-        rows,
-        smoothed=smoothed,
-        extra=extra or {},
-        summary=summary,
-        warnings=tuple(notes),
-        parameters=chosen or {},
-    )
-    write_report(report, fmt, output)
-
-
 def write_report(report, fmt: str, output: str | None) -> None:
     """Print (or write to ``-o``) the track of a :class:`rangekit.io.tracks.TrackReport`
     as CSV, a table or JSON, then its summary (a note, dropped by ``--quiet``) and its

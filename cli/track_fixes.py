@@ -11,9 +11,10 @@ from rangekit_cli.track_common import (
     log_argument,
     output_options,
     smooth_option,
-    write_track,
+    write_report,
 )
 
+from rangekit.io.tracks import TrackReport
 from rangekit.localize.deadreckoning import dead_reckon
 
 
@@ -38,8 +39,9 @@ def dead_reckoning_cmd(log, smooth, gate, no_gate, fmt, output):
     kw = gate_value(gate, no_gate)
     columns, rows = track_log(log, smooth=bool(smooth), **kw)
     chosen = {"gate": kw.get("gate", default(dead_reckon, "gate")), "smooth": bool(smooth)}
-    write_track(columns, rows, filter_name="dead-reckoning", log=str(log), fmt=fmt,
-                output=output, smoothed=bool(smooth), chosen=chosen)  # fmt: skip
+    report = TrackReport("dead-reckoning", str(log), columns, rows, smoothed=bool(smooth),
+                         parameters=chosen)  # fmt: skip
+    write_report(report, fmt, output)
 
 
 @click.command("lmax")
@@ -86,5 +88,4 @@ def lmax_cmd(log, l_max, i_star, fmt, output):
         t, fixes, l_max_m=l_max, i_star=None if i_star is None else i_star - 1
     )
     chosen = {"l_max_m": l_max, "filter": "online" if i_star is None else f"offline from {i_star}"}
-    write_track(columns, rows, filter_name="lmax", log=str(log), fmt=fmt, output=output,
-                chosen=chosen)  # fmt: skip
+    write_report(TrackReport("lmax", str(log), columns, rows, parameters=chosen), fmt, output)
