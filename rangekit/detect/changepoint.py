@@ -715,7 +715,11 @@ def _rise_db(
     ending a window before it (:func:`_levels`). None where those frames leave the series
     or the plateau holds no energy.
     """
-    lv = _levels(place, cs, n_e, hop=hop, w=w, n_plat=n_plat)
+    return _rise_of(_levels(place, cs, n_e, hop=hop, w=w, n_plat=n_plat))
+
+
+def _rise_of(lv: tuple[float, float] | None) -> float | None:
+    """:func:`_rise_db` of the levels ``(plateau, before)`` (:func:`_levels`)."""
     if lv is None or not lv[0] > 0:
         return None
     return min(30.0, max(0.0, 10.0 * math.log10(lv[0] / max(lv[1], 1e-300))))
@@ -766,6 +770,14 @@ def _anchors_compiled(
     return [(int(a), int(r)) for a, r in out.tolist()]
 
 
+def _allowed_scatter(scale, sigma, k, spacing):
+    """How far burst ``k``'s estimate of a beep onset may lie from the others', samples:
+    timing noise (2 samples at 44.1 kHz, ``scale`` = fs / 44100, and 4 sigma) plus 200 ppm
+    of clock-rate mismatch per spacing (``_edge_kernels._combine_py`` computes the same
+    in its compiled loop)."""
+    return 2.0 * scale + 4.0 * sigma + 2e-4 * k * spacing
+
+
 def _combine(
     fits: list[EdgeFit | None],
     clipped: list[bool],
@@ -794,8 +806,7 @@ def _combine(
     # A failed fit reports an infinite sigma; it then weighs (almost) nothing.
     raw_sg = np.array([fits[k].sigma for k in ks])
     sg = np.clip(np.nan_to_num(raw_sg, nan=1e6, posinf=1e6), 1e-3, 1e6)
-    # Allowed scatter: timing noise, plus 200 ppm of clock-rate mismatch per spacing.
-    allow = 2.0 * scale + 4.0 * sg + 2e-4 * ks * spacing
+    allow = _allowed_scatter(scale, sg, ks, spacing)
     close = np.abs(est[:, None] - est[None, :]) <= np.maximum(allow[:, None], allow[None, :])
     support = close.sum(axis=1)
     w_all = 1.0 / sg**2
@@ -1145,19 +1156,19 @@ def _shift_flags(
         ks = np.flatnonzero(np.isfinite(row))
         if len(ks) == 0:
             continue
-        # The scatter _combine allows a burst: 2 samples + 4 sigma + 200 ppm of a spacing.
+        # The scatter _combine allows a burst one spacing on (sigma at most 2 samples)
         tol = int(
-            math.ceil(2.0 * scale + 4.0 * min(float(arr.sigma[i]), 2.0 * scale) + 2e-4 * spacing)
+            math.ceil(_allowed_scatter(scale, min(float(arr.sigma[i]), 2.0 * scale), 1, spacing))
         )
         for k_n, k_x, k_r in ((int(ks[0]), -1, k_b - 1), (int(ks[-1]), k_b, 0)):
             place = float(row[k_n]) + (k_x - k_n) * spacing
-            rise = _rise_db(place, cs, len(e), hop=hop, w=w, n_plat=n_plat)
+            lv = _levels(place, cs, len(e), hop=hop, w=w, n_plat=n_plat)
+            rise = _rise_of(lv)
             if rise is None or rise < MIN_RISE_DB:
                 # No rise; but a burst masked by other sound of the band (a loud tone
                 # there already, which may cancel much of it) does not rise either:
                 # tested when the band holds, at the place or just before it,
                 # ``MASK_RATIO`` of the energy of the burst a shifted beep would drop.
-                lv = _levels(place, cs, len(e), hop=hop, w=w, n_plat=n_plat)
                 k_ref = k_r if np.isfinite(row[k_r]) else k_n
                 ref = _levels(float(row[k_ref]), cs, len(e), hop=hop, w=w, n_plat=n_plat)
                 if lv is None or ref is None or not max(lv) >= MASK_RATIO * ref[0]:
