@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import inspect
+
 from click.testing import CliRunner
 from rangekit_cli.main import cli
 
@@ -29,3 +31,16 @@ def assert_error(result, code: int, *names: str) -> str:
     for n in names:
         assert n in lines[0], (n, err)
     return lines[0]
+
+
+def with_defaults(fn, **new):
+    """``fn`` with other keyword defaults in its signature (what the CLI reads when it
+    shows or uses a library default), for monkeypatching the library."""
+
+    def wrapped(*args, **kw):
+        return fn(*args, **kw)
+
+    sig = inspect.signature(fn)
+    params = [p.replace(default=new.get(n, p.default)) for n, p in sig.parameters.items()]
+    wrapped.__signature__ = sig.replace(parameters=params)
+    return wrapped

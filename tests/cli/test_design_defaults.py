@@ -5,10 +5,9 @@ Barker burst, the sweep and the beep's rate are read from :class:`CodedBurst`,
 
 from __future__ import annotations
 
-import inspect
 from dataclasses import dataclass
 
-from clihelp import ok, run
+from clihelp import ok, run, with_defaults
 
 import rangekit.signals
 from rangekit.signals import barker, probe
@@ -31,20 +30,9 @@ def test_the_help_shows_the_librarys_defaults(monkeypatch):
     class Beep(rangekit.signals.Beep):
         fs: float = 48000.0
 
-    sweep = probe.linear_sweep
-
-    def other_sweep(*args, **kw):
-        return sweep(*args, **kw)
-
-    sig = inspect.signature(sweep)
-    other_sweep.__signature__ = sig.replace(
-        parameters=[
-            p.replace(default=64000.0) if n == "fs" else p for n, p in sig.parameters.items()
-        ]
-    )
     monkeypatch.setattr(barker, "CodedBurst", Burst)
     monkeypatch.setattr(rangekit.signals, "Beep", Beep)
-    monkeypatch.setattr(probe, "linear_sweep", other_sweep)
+    monkeypatch.setattr(probe, "linear_sweep", with_defaults(probe.linear_sweep, fs=64000.0))
     monkeypatch.setattr(probe, "DEFAULT_FADE_S", 0.01)
     text = _help("barker")
     for shown in ("as + and - [default: 13].", "Carrier, Hz [default: 25000].",

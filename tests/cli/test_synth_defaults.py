@@ -9,22 +9,10 @@ import inspect
 import json
 import math
 
-from clihelp import ok, run
+from clihelp import ok, run, with_defaults
 
 import rangekit.sim
 from rangekit.sim import scenarios
-
-
-def _with_defaults(fn, **new):
-    """``fn`` with other keyword defaults (its signature is what the CLI reads)."""
-
-    def wrapped(*args, **kw):
-        return fn(*args, **kw)
-
-    sig = inspect.signature(fn)
-    params = [p.replace(default=new.get(n, p.default)) for n, p in sig.parameters.items()]
-    wrapped.__signature__ = sig.replace(parameters=params)
-    return wrapped
 
 
 def _help(*cmd) -> str:
@@ -32,12 +20,12 @@ def _help(*cmd) -> str:
 
 
 def test_the_help_shows_the_librarys_defaults(monkeypatch):
-    ow = _with_defaults(scenarios.synth_oneway, ceiling_m=2.5, radius_m=0.3, period_s=0.25,
+    ow = with_defaults(scenarios.synth_oneway, ceiling_m=2.5, radius_m=0.3, period_s=0.25,
                         latency_s=0.001, snr_db=15.0, q=6.0, fs=96000.0)  # fmt: skip
-    ec = _with_defaults(scenarios.synth_echo, mount_angle_rad=math.pi / 2, snr_db=12.0, q=5.0)
+    ec = with_defaults(scenarios.synth_echo, mount_angle_rad=math.pi / 2, snr_db=12.0, q=5.0)
     monkeypatch.setattr(scenarios, "synth_oneway", ow)
     monkeypatch.setattr(scenarios, "synth_echo", ec)
-    monkeypatch.setattr(rangekit.sim, "ShoeboxRoom", _with_defaults(rangekit.sim.ShoeboxRoom,
+    monkeypatch.setattr(rangekit.sim, "ShoeboxRoom", with_defaults(rangekit.sim.ShoeboxRoom,
                         absorption=0.45, max_order=2))  # fmt: skip
     text = _help("oneway")
     for shown in ("§V). [default: 2.5;", "degrees). [default: 0.3;", "(5 Hz). [default: 0.25;",
@@ -63,9 +51,9 @@ def test_a_run_uses_them(tmp_path):
 def test_synth_beepbeep_shows_the_librarys_defaults(monkeypatch):
     """``synth beepbeep``'s --self-distance, --snr-db, --fs, --absorption and --order come
     from :func:`rangekit.sim.scenarios.synth_beepbeep` and :class:`ShoeboxRoom` too."""
-    bb = _with_defaults(scenarios.synth_beepbeep, self_distance_m=0.15, snr_db=25.0, fs=48000.0)
+    bb = with_defaults(scenarios.synth_beepbeep, self_distance_m=0.15, snr_db=25.0, fs=48000.0)
     monkeypatch.setattr(scenarios, "synth_beepbeep", bb)
-    monkeypatch.setattr(rangekit.sim, "ShoeboxRoom", _with_defaults(rangekit.sim.ShoeboxRoom,
+    monkeypatch.setattr(rangekit.sim, "ShoeboxRoom", with_defaults(rangekit.sim.ShoeboxRoom,
                         absorption=0.45, max_order=2))  # fmt: skip
     text = _help("beepbeep")
     for shown in ("distance, m. [default: 0.15]", "direct beep, dB. [default: 25.0]",
