@@ -334,11 +334,12 @@ def fit_channel(
         a, b = (int(v) for v in spans[w])
         if s1 - s0 < 3 or b - a < 3:
             continue
-        cw, noise = corr[w]
+        cw, noise, env = corr[w]
         l_, h_ = (0, s1 - s0) if lo is None else (lo, hi)
         p = M.first_path(
             cw, lo=l_ - (a - s0), hi=h_ - (a - s0), noise=noise, k_noise=k_noise,
             rel_threshold=rel_threshold, k_detect=k_detect, self_response=mf.self_response,
+            env=env,
         )  # fmt: skip
         if p is None:
             continue
@@ -404,7 +405,7 @@ def fit_channel(
         elif g.family == "stagger":
             got["stagger"] = _fit_one(x, lag, stag_model, sigma, g.acc["stagger"], q0, kw, low)
         any_fit = next((f for f in got.values() if f is not None), None)
-        top = float(np.abs(cw[int(round(p.strongest_lag))]))
+        top = float(env[int(round(p.strongest_lag))])
         rows.append([a + p.lag, math.inf, p.snr, p.height / top, w])
         sigmas.append(sigma)
         lims.append((s0 + l_, s0 + h_))
@@ -414,7 +415,7 @@ def fit_channel(
         early.append(
             M._earlier_candidate(
                 cw, lo=l_ - (a - s0), first=first, noise=noise, reach=mf.n_taps,
-                k=0.5 * (k_detect + k_noise), rel=rel_threshold,
+                k=0.5 * (k_detect + k_noise), rel=rel_threshold, env=env,
             )
         )  # fmt: skip
     for key, g in state.items():

@@ -855,6 +855,7 @@ def first_path(
     k_detect: float = DEFAULT_K_DETECT,
     self_response: np.ndarray | None = None,
     n_paths: int = 1,
+    env: np.ndarray | None = None,
 ) -> PathPeak | None:
     """The earliest envelope peak above ``max(k_noise * noise, rel_threshold * strongest)``.
 
@@ -890,13 +891,15 @@ def first_path(
         non-regular distribution of interferometer baselines", A&AS 15): in a room the
         direct path's own side lobes, not only the strongest path's, precede it.
         Default 1: the strongest path only.
+    env : ndarray, optional
+        ``np.abs(c)`` when the caller has it already (not computed again).
 
     Returns
     -------
     PathPeak or None
         None when nothing in the search range clears the threshold.
     """
-    env = np.abs(c)
+    env = np.abs(c) if env is None else env
     hi = len(env) if hi is None else min(int(hi), len(env))
     lo = max(0, int(lo))
     if hi - lo < 3:
@@ -1128,9 +1131,11 @@ def matched_filter(
 
 def _window_correlations(
     x: np.ndarray, template: np.ndarray, spans: np.ndarray, *, block: int = DEFAULT_BLOCK
-) -> list[tuple[np.ndarray, float]]:
+) -> _WindowCorrelations:
     """Per span ``[a, b)`` (``x`` as :func:`_check_x` returns it): the exact analytic
-    correlation and its envelope's Rayleigh noise scale, from one correlation per window.
+    correlation, its envelope's Rayleigh noise scale and the envelope, from one
+    correlation per window (:class:`_WindowCorrelations`: indexable, computed a chunk of
+    windows at a time).
 
     The noise is the median of the full-rate float64 envelope on purpose: the median of
     the decimated float32 envelope (:meth:`MatchedFilter.envelope`, every ``D``-th lag) is
@@ -1138,8 +1143,88 @@ def _window_correlations(
     moved accuracy rows (``oneway_accuracy --model bandpass --snr 10``, Q 4: RMS 7.83 ->
     7.36 mm; ``docs/performance.md``), which the speed-up must not do.
     """
-    mf = matched_filter(template, block=block)
-    return [(c, noise_level(np.abs(c))) for c in mf._correlate_spans(x, spans)]
+    return _WindowCorrelations(matched_filter(template, block=block), x, spans)
+
+
+#: Output lags (about; at least one span) :class:`_WindowCorrelations` computes at a time:
+#: 4 MB of complex output, which the allocator reuses from chunk to chunk (a whole
+#: recording's spans at once, 0.42 GB for the one-way bench's 10 minutes, cost 1.06 s of
+#: page faults alone on this machine, three times the FFTs; ``docs/performance.md``).
+WINDOW_CHUNK = 1 << 18
+
+
+class _WindowCorrelations:
+    """``[i] -> (c, noise, env)`` of span ``i``: the analytic correlation at its lags
+    (``correlate(x)[a:b]``), its envelope's Rayleigh noise scale and the envelope ``|c|``.
+
+    Bit for bit what :meth:`MatchedFilter._correlate_spans` of all spans gives (the same
+    end-to-end layout of the spans' inputs, the same overlap-save blocks), but computed a
+    chunk of about ``WINDOW_CHUNK`` output lags at a time when a span is first asked for,
+    so that the whole recording's correlation is never held (the last chunk is kept:
+    windows are read in order).
+    """
+
+    def __init__(self, mf: MatchedFilter, x: np.ndarray, spans: np.ndarray) -> None:
+        sp = np.asarray(spans, dtype=np.int64).reshape(-1, 2)
+        n = len(x)
+        bad = np.flatnonzero((sp[:, 0] < 0) | (sp[:, 0] > sp[:, 1]) | (sp[:, 1] > n))
+        if len(bad):
+            i = int(bad[0])
+            raise InvalidParameterError(f"span [{sp[i, 0]}, {sp[i, 1]}) is not within [0, {n}]")
+        self.mf, self.x, self.sp = mf, x, sp
+        # Each span's input x[a - pre, b - pre + n_taps) (zeros outside x), end to end.
+        self.lo = sp[:, 0] - mf.pre
+        self.length = sp[:, 1] - sp[:, 0] + mf.n_taps
+        self.offsets = np.concatenate([[0], np.cumsum(self.length)]).astype(np.int64)
+        self._chunk: tuple[int, int, list] | None = None
+
+    def __len__(self) -> int:
+        return len(self.sp)
+
+    def __getitem__(self, i: int) -> tuple[np.ndarray, float, np.ndarray]:
+        i = int(i)
+        if not 0 <= i < len(self.sp):
+            raise IndexError(i)
+        ch = self._chunk
+        if ch is None or not ch[0] <= i < ch[1]:
+            ch = self._chunk = self._compute(i)
+        return ch[2][i - ch[0]]
+
+    def _compute(self, i: int) -> tuple[int, int, list]:
+        """Spans ``i, i + 1, ...`` (about ``WINDOW_CHUNK`` output lags) at once."""
+        mf, off, step = self.mf, self.offsets, self.mf.step
+        # Whole global blocks from the one holding span i's first output: block k of this
+        # call reads the same samples as block g0 / step + k of the whole layout.
+        g0 = (int(off[i]) // step) * step
+        j = i + 1
+        while j < len(self.sp) and off[j] + self.sp[j, 1] - self.sp[j, 0] - g0 <= WINDOW_CHUNK:
+            j += 1
+        n_out = int(off[j - 1] + self.sp[j - 1, 1] - self.sp[j - 1, 0]) - g0
+        n_blocks = -(-n_out // step)
+        g1 = min(int(off[-1]), g0 + (n_blocks - 1) * step + mf.n_fft)
+        out = mf._segments(self._inputs(g0, g1), n_out)
+        res = []
+        for k in range(i, j):
+            o = int(off[k]) - g0
+            c = out[o : o + int(self.sp[k, 1] - self.sp[k, 0])]
+            env = np.abs(c)
+            res.append((c, noise_level(env), env))
+        return i, j, res
+
+    def _inputs(self, g0: int, g1: int) -> np.ndarray:
+        """The end-to-end layout of the spans' inputs at ``[g0, g1)``."""
+        x, n = self.x, len(self.x)
+        buf = np.zeros(max(g1 - g0, 0), dtype=x.dtype)
+        off = self.offsets
+        k = max(0, int(np.searchsorted(off, g0, side="right")) - 1)
+        while k < len(self.sp) and off[k] < g1:
+            p0, p1 = max(int(off[k]), g0), min(int(off[k + 1]), g1)  # layout range
+            s0 = int(self.lo[k]) + (p0 - int(off[k]))  # its samples in x
+            a, b = max(s0, 0), min(s0 + (p1 - p0), n)
+            if b > a:
+                buf[p0 - g0 + (a - s0) : p0 - g0 + (b - s0)] = x[a:b]
+            k += 1
+        return buf
 
 
 def _window_spans(windows, n, lo, hi, m):
@@ -1254,7 +1339,7 @@ def detect_matched(
         a, b = (int(v) for v in spans[w])
         if s1 - s0 < 3 or b - a < 3:
             continue
-        cw, noise = corr[w]
+        cw, noise, env = corr[w]
         l_, h_ = (0, s1 - s0) if lo is None else (lo, hi)
         p = first_path(
             cw,
@@ -1265,6 +1350,7 @@ def detect_matched(
             rel_threshold=rel_threshold,
             k_detect=k_detect,
             self_response=mf.self_response,
+            env=env,
         )
         if p is None:
             continue
@@ -1278,7 +1364,7 @@ def detect_matched(
                 int(labels[w]),
                 k_noise, rel_threshold, s0 + l_, s0 + h_, low,
             )  # fmt: skip
-        top = float(np.abs(cw[int(round(p.strongest_lag))]))
+        top = float(env[int(round(p.strongest_lag))])
         sigma = 1.0 / (2.0 * math.pi * beta * p.snr) * fs if p.snr > 0 else math.inf
         rows.append([a + p.lag, sigma, p.snr, p.height / top, w])
         fits.append(fit)
@@ -1286,7 +1372,7 @@ def detect_matched(
         early.append(
             _earlier_candidate(
                 cw, lo=l_ - (a - s0), first=first, noise=noise, reach=mf.n_taps,
-                k=0.5 * (k_detect + k_noise), rel=rel_threshold,
+                k=0.5 * (k_detect + k_noise), rel=rel_threshold, env=env,
             )
         )  # fmt: skip
     if model is not None and pool and rows:
@@ -1430,15 +1516,15 @@ def _median(v: np.ndarray) -> float:
     return float((p[k - 1] + p[k]) / 2.0)
 
 
-def _earlier_candidate(c, *, lo, first, noise, reach, k, rel) -> bool:
+def _earlier_candidate(c, *, lo, first, noise, reach, k, rel, env=None) -> bool:
     """Whether the envelope holds a peak the first-path rule passed over, well before it.
 
     A local maximum earlier than the first path by more than the template's reach (so
     not its own side lobe), above ``k`` noise scales (between the detection and the
     first-path thresholds: a direct path weaker than a reflection at low SNR) and above
-    ``rel`` times the first path's height.
+    ``rel`` times the first path's height. ``env``: ``np.abs(c)`` if the caller has it.
     """
-    env = np.abs(c)
+    env = np.abs(c) if env is None else env
     i1 = int(math.floor(first)) - int(reach)
     i0 = max(1, int(lo))
     if i1 - i0 < 3 or not 0 <= int(round(first)) < len(env):

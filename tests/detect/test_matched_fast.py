@@ -138,3 +138,35 @@ def test_fast_path_validation(h_folded):
         mf.correlate(np.zeros((2, 100), dtype=np.float32))
     with pytest.raises(InvalidParameterError, match="span"):
         mf.envelope_spans(np.zeros(100), np.array([[50, 200]]))
+
+
+@pytest.mark.parametrize("chunk", [1, 5000, 40000, M.WINDOW_CHUNK])
+@pytest.mark.parametrize("dtype", [np.float64, np.float32])
+def test_window_correlations_in_chunks_equal_all_spans_at_once(
+    h_folded, bursts, chunk, dtype, monkeypatch
+):
+    """The per-window correlations, computed a chunk of windows at a time, are bit for bit
+    the correlation of all spans laid end to end (the same blocks), at any chunk size
+    (one span per chunk, chunks ending inside an FFT block, the default), with spans at
+    both ends of the signal, empty and overlapping ones, read in order and out of order."""
+    monkeypatch.setattr(M, "WINDOW_CHUNK", chunk)
+    x = bursts.astype(dtype)
+    n = len(x)
+    rng = np.random.default_rng(7)
+    a = np.sort(rng.integers(0, n - 9000, 40))
+    spans = np.column_stack([a, a + rng.integers(0, 9000, 40)])
+    spans = np.vstack([[[0, 5000], [n - 3000, n], [100, 100], [n, n]], spans])
+    mf = M.matched_filter(h_folded)
+    want = mf._correlate_spans(x, spans)
+    corr = M._window_correlations(x, h_folded, spans)
+    assert len(corr) == len(spans)
+    order = list(range(len(spans))) + [3, 0, len(spans) - 1, 10]
+    for i in order:
+        c, noise, env = corr[i]
+        assert c.dtype == np.complex128 and np.array_equal(c, want[i])
+        assert np.array_equal(env, np.abs(want[i]))
+        assert noise == M.noise_level(np.abs(want[i]))
+    with pytest.raises(IndexError):
+        corr[len(spans)]
+    with pytest.raises(InvalidParameterError, match="not within"):
+        M._window_correlations(x, h_folded, np.array([[10, n + 1]]))
