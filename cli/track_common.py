@@ -120,10 +120,7 @@ def write_report(report, fmt: str, output: str | None) -> None:
     warnings (always); with ``--verbose`` first the parameters used (the library's
     defaults filled in)."""
     if report.parameters:
-        detail(
-            f"rangekit: track {report.filter_name}: "
-            + ", ".join(f"{k} {v}" for k, v in report.parameters.items())
-        )
+        detail(f"rangekit: track {report.filter_name}: {report.parameters_text()}")
     emit(report.format(fmt), output)
     if report.summary:
         note(report.summary)

@@ -12,6 +12,8 @@ Every command that prints results (``range``, ``detect``, ``locate``, ``calibrat
   (a value is never printed coarser than its sigma); missing values empty; flags joined
   by ``;``; a plain header row.
 * **json** (programs): full precision, null for missing, flags as lists.
+* **text** (a value in a line for people: ``--verbose``'s parameters, notes): up to six
+  significant digits (:func:`format_value`).
 
 Examples
 --------
@@ -50,6 +52,7 @@ __all__ = [
     "format_report",
     "format_rows",
     "format_tof",
+    "format_value",
     "sigma_decimals",
 ]
 
@@ -140,6 +143,42 @@ def _cell(row: dict, field: str, fmt: str) -> str:
 def _json_safe(row: dict) -> dict:
     """Non-finite floats become None (JSON null): JSON has no NaN."""
     return {k: (None if isinstance(v, float) and not np.isfinite(v) else v) for k, v in row.items()}
+
+
+def format_value(value) -> str:
+    """One value in a line of text for people (``rangekit track --verbose``'s parameters).
+
+    A number with up to six significant digits (Python's ``g``: ``0.33``, ``5000``,
+    ``1e-05``; a whole-valued float as a whole number), a missing value (None, NaN) as
+    ``none``, a flag (bool) as ``yes`` or ``no``, a sequence as its values joined by ``,``
+    (the form options take, ``--mounts 90,-90``; a sequence of sequences joined by ``;``),
+    text as it is.
+
+    Examples
+    --------
+    >>> format_value(0.0004), format_value(29.999999999999996), format_value(0.999)
+    ('0.0004', '30', '0.999')
+    >>> format_value(None), format_value(float("nan")), format_value(False), format_value(5)
+    ('none', 'none', 'no', '5')
+    >>> format_value([90.0, -90.0]), format_value(((0.0, 0.15), (0.0, -0.15)))
+    ('90,-90', '0,0.15;0,-0.15')
+    >>> format_value("from the ranges")
+    'from the ranges'
+    """
+    if isinstance(value, np.ndarray):
+        value = value.tolist()
+    if value is None:
+        return "none"
+    if isinstance(value, (bool, np.bool_)):
+        return "yes" if value else "no"
+    if isinstance(value, (int, np.integer)):
+        return str(int(value))
+    if isinstance(value, (float, np.floating)):
+        return "none" if math.isnan(value) else f"{float(value):g}"
+    if isinstance(value, (list, tuple)):
+        nested = any(isinstance(v, (list, tuple, np.ndarray)) for v in value)
+        return (";" if nested else ",").join(format_value(v) for v in value)
+    return str(value)
 
 
 def format_pm(value: float, sigma: float, *, sign: bool = False) -> str:

@@ -132,7 +132,8 @@ class TrackReport:
     warnings : tuple of str
         Plain-language warnings (printed on stderr, ``warning: `` first).
     parameters : dict
-        The parameters used, the library's defaults filled in (printed by ``--verbose``).
+        The parameters used, the library's defaults filled in (printed by ``--verbose``
+        as :meth:`parameters_text`).
 
     Examples
     --------
@@ -143,6 +144,9 @@ class TrackReport:
     0.0,1.5
     >>> json.loads(r.format("json"))["n"]
     1
+    >>> TrackReport("lmax", "f.csv", (), [], parameters={"gate": None, "mounts_deg": (90.0, -90.0)}
+    ...             ).parameters_text()
+    'gate none, mounts_deg 90,-90'
     """
 
     filter_name: str
@@ -166,3 +170,10 @@ class TrackReport:
             smoothed=self.smoothed,
             extra=self.extra,
         )
+
+    def parameters_text(self) -> str:
+        """The parameters as ``name value, ...``, each value as every line for people
+        writes one (:func:`rangekit.io.results.format_value`)."""
+        from rangekit.io.results import format_value
+
+        return ", ".join(f"{k} {format_value(v)}" for k, v in self.parameters.items())

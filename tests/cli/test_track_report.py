@@ -77,9 +77,7 @@ def test_range_ekf_prints_track_report(walk, extra, kw, fmt):
     trk = range_ekf.track_ranges(read_measurement_log(walk), smooth=smooth, name=str(walk), **kw)
     rep = range_ekf.track_report(trk, log=str(walk), smoothed=smooth, options=kw)
     assert r.stdout == rep.format(fmt)
-    verbose = "rangekit: track range-ekf: " + ", ".join(
-        f"{k} {v}" for k, v in rep.parameters.items()
-    )
+    verbose = f"rangekit: track range-ekf: {rep.parameters_text()}"
     assert r.stderr == f"{verbose}\n" + _stderr(rep)
 
 
@@ -145,7 +143,5 @@ def test_particle_prints_track_report(girard, extra, kw, fmt):
     rep = particle.track_report(trk, log=str(d / "steps.csv"), start_xy=[1.25, 1.0], plan=plan,
                                 ranges=ranges, seed=4)  # fmt: skip
     assert r.stdout == rep.format(fmt)
-    verbose = "rangekit: track particle: " + ", ".join(
-        f"{k} {v}" for k, v in rep.parameters.items()
-    )
+    verbose = f"rangekit: track particle: {rep.parameters_text()}"
     assert r.stderr == f"{verbose}\n" + _stderr(rep)
