@@ -213,6 +213,32 @@ def _check_x(name: str, x) -> np.ndarray:
     return a
 
 
+def _pocketfft():
+    """scipy's pocketfft module (what ``scipy.fft.rfft``/``irfft`` call), or None if this
+    scipy lays it out otherwise; imported on first use (start-up imports no scipy)."""
+    global _POCKET
+    if _POCKET is False:
+        try:
+            from scipy.fft._pocketfft import pypocketfft as mod
+        except ImportError:  # pragma: no cover - another scipy layout: the public calls
+            mod = None
+        _POCKET = mod
+    return _POCKET
+
+
+_POCKET = False  # not looked up yet
+
+
+def _ws_array(ws: dict, name: str, shape: tuple, dtype) -> np.ndarray:
+    """An array of ``shape`` from the workspace ``ws`` (a view of its buffer ``name``,
+    grown when too small; contents undefined)."""
+    size = math.prod(shape)
+    buf = ws.get(name)
+    if buf is None or buf.dtype != dtype or len(buf) < size:
+        buf = ws[name] = np.empty(size, dtype=dtype)
+    return buf[:size].reshape(shape)
+
+
 def _block_batches(x: np.ndarray, lead: int, step: int, n: int, n_blocks: int, per: int):
     """Overlap-save blocks ``v[b step : b step + n]`` of ``v = [0] * lead + x + [0] * ...``.
 
@@ -370,14 +396,21 @@ class MatchedFilter:
         for b0, win in _block_batches(x, lead, step, n, n_blocks, per):
             yield b0 * step, (win if win.dtype == rdt else win.astype(rdt))
 
-    def _segments(self, x: np.ndarray, n_out: int, lead: int = 0) -> np.ndarray:
+    def _segments(
+        self, x: np.ndarray, n_out: int, lead: int = 0, ws: dict | None = None
+    ) -> np.ndarray:
         """Correlation outputs ``[0, n_out)`` of ``x`` delayed by ``lead`` zeros.
 
         The FFT blocks are strided windows of ``x`` (no copies but the padded first and
         last blocks) in batches of about 2^18 samples, small enough that their
         temporaries are reused rather than freshly mapped and zeroed by the OS (see
-        ``docs/performance.md``).
+        ``docs/performance.md``). ``ws``: a workspace dict of the caller's that keeps the
+        output and every temporary between calls (the same pocketfft calls scipy makes,
+        with their outputs given: the same numbers); the returned array is then the
+        workspace's, overwritten by the next call with the same ``ws``.
         """
+        if ws is not None and _pocketfft() is not None:
+            return self._segments_ws(x, n_out, lead, ws)
         sf, n, step = self._fft, self.n_fft, self.step
         out = np.empty(n_out, dtype=DTYPES[self.dtype][1])
         for s0, blocks in self._batches(x, lead, n_out, step):
@@ -387,6 +420,34 @@ class MatchedFilter:
             o2 = out[s0 : s0 + full * step].reshape(full, step)
             for part, g in ((o2.real, self._gr), (o2.imag, self._gi)):
                 y = sf.irfft(X * g, n, axis=1)
+                part[...] = y[:full, :step]
+                if m > full * step:
+                    rest = out[s0 + full * step : s0 + m]
+                    (rest.real if g is self._gr else rest.imag)[...] = y[full, : m - full * step]
+        return out
+
+    def _segments_ws(self, x: np.ndarray, n_out: int, lead: int, ws: dict) -> np.ndarray:
+        """:meth:`_segments` with every array kept in ``ws`` (no fresh memory per call)."""
+        n, step, pocket = self.n_fft, self.step, _pocketfft()
+        rdt, cdt = DTYPES[self.dtype]
+        out = _ws_array(ws, "out", (n_out,), cdt)
+        per = max(1, (1 << 18) // n)
+        n_blocks = -(-n_out // step)
+        for b0, win in _block_batches(x, lead, step, n, n_blocks, per):
+            s0, nb = b0 * step, len(win)
+            if win.dtype != rdt:  # as win.astype(rdt), into the workspace
+                blocks = _ws_array(ws, "blocks", (nb, n), rdt)
+                np.copyto(blocks, win, casting="unsafe")
+                win = blocks
+            X = pocket.r2c(win, (1,), True, 0, _ws_array(ws, "X", (nb, n // 2 + 1), cdt), 1)
+            prod = _ws_array(ws, "prod", X.shape, cdt)
+            y = _ws_array(ws, "y", (nb, n), rdt)
+            m = min(n_out - s0, nb * step)
+            full = m // step
+            o2 = out[s0 : s0 + full * step].reshape(full, step)
+            for part, g in ((o2.real, self._gr), (o2.imag, self._gi)):
+                np.multiply(X, g, out=prod)
+                pocket.c2r(prod, (1,), n, False, 2, y, 1)
                 part[...] = y[:full, :step]
                 if m > full * step:
                     rest = out[s0 + full * step : s0 + m]
@@ -1161,7 +1222,9 @@ class _WindowCorrelations:
     end-to-end layout of the spans' inputs, the same overlap-save blocks), but computed a
     chunk of about ``WINDOW_CHUNK`` output lags at a time when a span is first asked for,
     so that the whole recording's correlation is never held (the last chunk is kept:
-    windows are read in order).
+    windows are read in order). The arrays of a chunk live in one reused workspace: a
+    span's ``c`` is overwritten when another chunk is computed (use it, or copy it,
+    before asking for a span of another chunk).
     """
 
     def __init__(self, mf: MatchedFilter, x: np.ndarray, spans: np.ndarray) -> None:
@@ -1177,6 +1240,7 @@ class _WindowCorrelations:
         self.length = sp[:, 1] - sp[:, 0] + mf.n_taps
         self.offsets = np.concatenate([[0], np.cumsum(self.length)]).astype(np.int64)
         self._chunk: tuple[int, int, list] | None = None
+        self._ws: dict = {}  # the chunks' output and temporaries, reused
 
     def __len__(self) -> int:
         return len(self.sp)
@@ -1202,7 +1266,7 @@ class _WindowCorrelations:
         n_out = int(off[j - 1] + self.sp[j - 1, 1] - self.sp[j - 1, 0]) - g0
         n_blocks = -(-n_out // step)
         g1 = min(int(off[-1]), g0 + (n_blocks - 1) * step + mf.n_fft)
-        out = mf._segments(self._inputs(g0, g1), n_out)
+        out = mf._segments(self._inputs(g0, g1), n_out, ws=self._ws)
         res = []
         for k in range(i, j):
             o = int(off[k]) - g0
@@ -1214,7 +1278,8 @@ class _WindowCorrelations:
     def _inputs(self, g0: int, g1: int) -> np.ndarray:
         """The end-to-end layout of the spans' inputs at ``[g0, g1)``."""
         x, n = self.x, len(self.x)
-        buf = np.zeros(max(g1 - g0, 0), dtype=x.dtype)
+        buf = _ws_array(self._ws, "in", (max(g1 - g0, 0),), x.dtype)
+        buf[...] = 0.0
         off = self.offsets
         k = max(0, int(np.searchsorted(off, g0, side="right")) - 1)
         while k < len(self.sp) and off[k] < g1:
