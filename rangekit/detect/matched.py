@@ -1272,7 +1272,9 @@ class _WindowCorrelations:
             o = int(off[k]) - g0
             c = out[o : o + int(self.sp[k, 1] - self.sp[k, 0])]
             env = np.abs(c)
-            res.append((c, noise_level(env), env))
+            # noise_level(env) (c is finite: x is checked), by one partition.
+            noise = _median(env) / _RAYLEIGH_MEDIAN if len(env) else 0.0
+            res.append((c, noise, env))
         return i, j, res
 
     def _inputs(self, g0: int, g1: int) -> np.ndarray:
@@ -1575,10 +1577,12 @@ def _median(v: np.ndarray) -> float:
     """``np.median`` of a finite 1-D array, by one partition (the same value)."""
     n = len(v)
     k = n // 2
+    p = np.partition(v, k)
     if n % 2:
-        return float(np.partition(v, k)[k])
-    p = np.partition(v, (k - 1, k))
-    return float((p[k - 1] + p[k]) / 2.0)
+        return float(p[k])
+    # The (k-1)-th smallest is the largest of those partitioned below the k-th (one
+    # partition: partitioning at (k - 1, k) selects twice, 6x slower at n = 8700).
+    return float((p[:k].max() + p[k]) / 2.0)
 
 
 def _earlier_candidate(c, *, lo, first, noise, reach, k, rel, env=None) -> bool:

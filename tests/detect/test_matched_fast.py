@@ -160,7 +160,7 @@ def test_window_correlations_in_chunks_equal_all_spans_at_once(
     want = mf._correlate_spans(x, spans)
     corr = M._window_correlations(x, h_folded, spans)
     assert len(corr) == len(spans)
-    order = list(range(len(spans))) + [3, 0, len(spans) - 1, 10]
+    order = [*range(len(spans)), 3, 0, len(spans) - 1, 10]
     for i in order:
         c, noise, env = corr[i]
         assert c.dtype == np.complex128 and np.array_equal(c, want[i])
@@ -170,3 +170,13 @@ def test_window_correlations_in_chunks_equal_all_spans_at_once(
         corr[len(spans)]
     with pytest.raises(InvalidParameterError, match="not within"):
         M._window_correlations(x, h_folded, np.array([[10, n + 1]]))
+
+
+def test_median_by_one_partition_equals_numpy():
+    """``_median`` (one partition; the lower middle value the largest below it) is
+    ``np.median`` exactly: even and odd sizes, ties, float32 and float64."""
+    rng = np.random.default_rng(11)
+    for n in (2, 3, 4, 8700, 8701):
+        for v in (rng.normal(size=n), rng.integers(0, 3, n).astype(float),
+                  rng.normal(size=n).astype(np.float32)):  # fmt: skip
+            assert M._median(v) == float(np.median(v))
