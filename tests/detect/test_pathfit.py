@@ -16,8 +16,10 @@ import math
 import numpy as np
 import pytest
 
+from rangekit.detect import pathfit as P
 from rangekit.detect.matched import MatchedFilter, coded_template, first_path
 from rangekit.detect.pathfit import (
+    Q_LIMITS,
     PathFit,
     ResonatorModel,
     _evaluate,
@@ -212,3 +214,225 @@ def test_pooling_refuses_transducers_that_disagree_and_drops_outliers():
     two = [_fake([math.log(10.0), 40000.0], info), _fake([math.log(20.0), 40000.0], info)]
     out, pooled = pool_fits(two)  # only two, 7 sigma apart: not one pair of transducers
     assert not pooled and out == two
+
+
+# Issue 21 (the mutation check): the fit's documented rules, one by one.
+
+
+def test_q_beyond_the_limit_is_fitted_at_the_limit(model):
+    """Transducers of Q 40, beyond ``Q_LIMITS``' 30: the paths are fitted at Q 30 (the
+    limit), and the arrival's own estimate (one Newton step from it) lies between the
+    limit and the truth (measured 38.4); within the limits (Q 29) the fit is exact."""
+    t0 = 1500.3
+    f = fit_arrival(_received(40.0, [t0], [0.01]), t0, model=model, sigma=1e-9)
+    assert math.exp(f.theta_lin[0]) == pytest.approx(Q_LIMITS[1], rel=1e-12)
+    assert Q_LIMITS[1] + 4.0 < f.q < 40.0
+    f = fit_arrival(_received(29.0, [t0], [0.01]), t0, model=model, sigma=1e-9)
+    assert f.q == pytest.approx(29.0, rel=1e-6) and abs(f.onset - t0) < 1e-3
+
+
+def test_a_held_fit_holds_the_default_q_and_estimates_the_arrivals_own(model):
+    """``hold=True`` without ``q0`` holds rangekit's default Q 4: an arrival through Q 4
+    transducers is timed exactly. Held at Q 10 or 14 for a Q 12 arrival, the paths are
+    fitted at the held Q (onset there 1.10 and -0.81 samples off, measured) and the
+    arrival's own estimate of Q, one Gauss-Newton step from it, is within 0.5 of 12
+    (measured 11.79, 11.74); the onset conditioned on it is within 0.16 samples (0.081,
+    0.075)."""
+    t0 = 1500.25
+    f = fit_arrival(_received(4.0, [t0], [0.01]), t0, model=model, sigma=1e-9, hold=True)
+    assert f.q == pytest.approx(4.0, rel=1e-9) and abs(f.onset - t0) < 1e-6
+    x = _received(12.0, [t0], [0.01])
+    for qh, off in ((10.0, 1.10), (14.0, -0.81)):
+        f = fit_arrival(x, t0, model=model, sigma=1e-9, hold=True, q0=qh)
+        assert math.exp(f.theta_lin[0]) == pytest.approx(qh, rel=1e-12)
+        assert f.onsets[f.first] - t0 == pytest.approx(off, abs=0.02)
+        assert abs(f.q - 12.0) < 0.5 and abs(f.onset - t0) < 0.16 and not f.pooled
+
+
+def test_a_direct_path_weaker_than_a_later_reflection(model):
+    """The coarse lag at a reflection 0.3 ms (57.6 samples) after a weaker direct path:
+    the segment starts ``PRE_S`` (0.4 ms) before the lag, so the direct path is fitted,
+    and it is the first path when it clears ``k_noise`` (6) noise scales and
+    ``rel_threshold`` (0.25) of the reflection (the rule of ``matched.first_path``):
+    at 0.35 of the reflection and an SNR of 9 it is; with ``k_noise`` 10 or
+    ``rel_threshold`` 0.4 it is not; at 0.2 of the reflection (SNR 150) it is not."""
+    t0, d = 1500.25, 0.3e-3 * FS
+    e = model.energy(12.0, 40000.0)
+    x = _received(12.0, [t0, t0 + d], [0.35, 1.0])
+    sigma = 0.35 * math.sqrt(e) / 9.0  # the direct path's SNR: 9
+    f = fit_arrival(x, t0 + d, model=model, sigma=sigma)
+    assert f.n_paths == 2 and abs(f.onset - t0) < 1e-3
+    assert f.snr == pytest.approx(9.0, rel=1e-3)
+    assert f.n0 <= t0 - model.pre + d  # read from PRE_S before the lag (or earlier)
+    f = fit_arrival(x, t0 + d, model=model, sigma=sigma, k_noise=10.0)
+    assert abs(f.onset - (t0 + d)) < 1e-3
+    f = fit_arrival(x, t0 + d, model=model, sigma=sigma, rel_threshold=0.4)
+    assert abs(f.onset - (t0 + d)) < 1e-3
+    x = _received(12.0, [t0, t0 + d], [0.2, 1.0])
+    f = fit_arrival(x, t0 + d, model=model, sigma=0.2 * math.sqrt(e) / 30.0)
+    assert f.n_paths == 2 and abs(f.onset - (t0 + d)) < 1e-3
+
+
+def test_a_path_at_the_segments_start_is_read_again_from_earlier(model):
+    """A coarse lag 0.45 ms late (beyond ``PRE_S``: the path begins 8.75 samples before
+    the first segment read): the segment is read again from ``PRE_S`` before the path,
+    and the fit is the one from the right lag (the same segment, onset and sigma)."""
+    t0 = 1500.25
+    x = _received(12.0, [t0], [1.0])
+    rng = np.random.default_rng(7)
+    x = x + 1e-3 * rng.standard_normal(len(x))
+    right = fit_arrival(x, t0, model=model, sigma=1e-3)
+    late = fit_arrival(x, t0 + 0.45e-3 * FS, model=model, sigma=1e-3)
+    assert late.n0 == right.n0 == int(t0) - model.pre
+    assert late.onset == pytest.approx(right.onset, abs=1e-9)
+    assert late.sigma == pytest.approx(right.sigma, rel=1e-9)
+
+
+def test_the_first_path_lies_in_lo_hi_within_a_sample(model):
+    """Two paths 57.6 samples apart: with ``lo`` up to a sample after the first path it
+    is taken (the search's one-sample slack); with ``lo`` 1.5 samples after it, the
+    second; with ``hi`` before the second, the first, and a ``[lo, hi)`` that holds neither:
+    no fit."""
+    t0, d = 1500.25, 0.3e-3 * FS
+    x = _received(12.0, [t0, t0 + d], [1.0, 0.8])
+    for lo, want in ((t0 - 0.5, t0), (t0 + 0.9, t0), (t0 + 1.5, t0 + d)):
+        f = fit_arrival(x, t0, model=model, sigma=1e-6, lo=lo)
+        assert abs(f.onset - want) < 1e-3, lo - t0
+    f = fit_arrival(x, t0, model=model, sigma=1e-6, hi=t0 + d - 0.5)
+    assert abs(f.onset - t0) < 1e-3
+    assert fit_arrival(x, t0, model=model, sigma=1e-6, lo=t0 + 1.5, hi=t0 + d - 0.5) is None
+
+
+def test_well_posed_refuses_close_paths_and_outsized_amplitudes(model):
+    """``_well_posed``: paths ``MIN_SEP`` resolutions apart or more, and no path stronger
+    than ``AMP_GUARD`` (2) times the segment's single-path amplitude scale."""
+    th = model.theta_start(12.0)
+    res = P._resolution(model, th)
+    x = _received(12.0, [100.0, 100.0 + 2 * res], [1.0, 1.5], n=model.segment)
+    st = _evaluate(x, model, np.array([100.0, 100.0 + 2 * res]), th, False)
+    top = float(P._amps(st).max())
+    assert top == pytest.approx(1.5, rel=1e-6)
+    assert P._well_posed(st, model, top / 1.9)
+    assert not P._well_posed(st, model, top / 2.1)
+    close = _evaluate(x, model, np.array([100.0, 100.0 + 0.25 * res]), th, False)
+    assert not P._well_posed(close, model, 100.0)
+    apart = _evaluate(x, model, np.array([100.0, 100.0 + 0.35 * res]), th, False)
+    assert P._well_posed(apart, model, 100.0)
+
+
+@pytest.mark.parametrize("hold", [False, True])
+def test_the_fit_does_not_depend_on_the_recordings_scale(model, hold):
+    """The same noisy arrival (a reflection 1.5x the direct path 0.05 ms later, inside a
+    resolution) in units 1e-4, 1 and 3e4 times apart (int16 counts), the noise sigma
+    scaled alike: the same onsets, sigma, Q and misfit (relative 1e-6)."""
+    t0 = 1200.25
+    rng = np.random.default_rng(2)
+    x = _received(12.0, [t0, t0 + 0.05e-3 * FS], [1.0, 1.5])
+    x = x + 1e-3 * rng.standard_normal(len(x))
+    fits = [
+        fit_arrival(s * x, t0, model=model, sigma=s * 1e-3, hold=hold, q0=12.0)
+        for s in (1e-4, 1.0, 3e4)
+    ]
+    ref = fits[1]
+    assert ref.n_paths == 2 and abs(ref.onset - t0) < 0.1  # measured 0.048
+    for f in (fits[0], fits[2]):
+        assert f.n_paths == ref.n_paths
+        assert f.onsets == pytest.approx(ref.onsets, rel=1e-9, abs=1e-6)
+        assert f.sigma == pytest.approx(ref.sigma, rel=1e-6)
+        assert f.q == pytest.approx(ref.q, rel=1e-6)
+        assert f.misfit_z == pytest.approx(ref.misfit_z, rel=1e-6, abs=1e-6)
+        assert f.snr == pytest.approx(ref.snr, rel=1e-6)
+
+
+def test_three_separated_paths_are_each_fitted(model):
+    """A direct path and reflections 0.3 and 0.65 ms later (the second beyond the
+    two-path scan's reach: added at the residual's peak): all three fitted, free or with
+    Q held, at their onsets and amplitudes."""
+    t0 = 1500.25
+    on = [t0, t0 + 0.3e-3 * FS, t0 + 0.65e-3 * FS]
+    x = _received(12.0, on, [1.0, 0.7, 0.5])
+    for hold in (False, True):
+        f = fit_arrival(x, t0, model=model, sigma=1e-6, hold=hold, q0=12.0)
+        assert f.n_paths == 3 and f.first == 0 and f.strongest == 0, hold
+        assert f.onsets == pytest.approx(on, abs=1e-3)
+        assert f.amplitudes == pytest.approx([1.0, 0.7, 0.5], rel=1e-4)
+
+
+@pytest.mark.parametrize("q", [4.0, 12.0, 25.0])
+def test_energies_resolution_and_matched_filter_in_closed_form(model, q):
+    """The model's energy (and the energy of its first ``n - j`` samples) is the sum of
+    the waveform's squares; its resolution the lag where the envelope of the waveform's
+    analytic autocorrelation (scipy's Hilbert transform, numpy's correlation) first falls
+    below one half (13, 24, 38 samples at Q 4, 12, 25); the residual matched filter the
+    correlation of the residual with the analytic waveform."""
+    from scipy.signal import hilbert
+
+    th = model.theta_start(q)
+    w = model.waveform(q, 40000.0)
+    e = float(w @ w)
+    assert model.energy(q, 40000.0) == pytest.approx(e, rel=1e-12)
+    assert P._energy(model, th) == pytest.approx(e, rel=1e-12)
+    n = 300
+    ref = np.cumsum(w[:n] ** 2)[::-1]
+    assert model.energy_inside(q, 40000.0, n) == pytest.approx(ref, rel=1e-12)
+    assert P._energy_inside(model, th, n) == pytest.approx(ref, rel=1e-12)
+    a = hilbert(w)
+    r = np.abs(np.correlate(a, a, "full"))[len(a) - 1 :]
+    assert P._resolution(model, th) == float(np.flatnonzero(r < 0.5 * r[0])[0])
+    x = _received(q, [100.0, 180.0], [1.0, 0.5], n=model.segment)
+    spec = np.zeros(model.n_fft, complex)
+    spec[: model.n_fft // 2 + 1] = model.spectrum(q, 40000.0)
+    sa = np.fft.ifft(spec)  # the analytic waveform
+    c = model.residual_mf(x, q, 40000.0)
+    assert np.max(np.abs(c - P._residual_mf(model, x, th))) == 0.0
+    for j in (0, 57, 100, 180, 250):
+        want = np.sum(x * np.conj(np.roll(sa, j)[: len(x)]))
+        assert c[j] == pytest.approx(want, rel=1e-9, abs=1e-12 * abs(c).max())
+
+
+def test_theta_limits_variants_and_scan(model):
+    """``theta_clip`` keeps Q in ``Q_LIMITS`` and f0 within ``F0_LIMIT`` (10 %) of the
+    nominal; the two-path scan's broader models are Q / 2, Q / sqrt 2 and Q itself
+    (clipped at the lower limit); the free fit's scan is ``SCAN_Q`` at the given f0."""
+    lq, f = model.theta_clip(np.array([10.0, 50000.0]))
+    assert math.exp(lq) == pytest.approx(Q_LIMITS[1]) and f == pytest.approx(44000.0)
+    lq, f = model.theta_clip(np.array([-1.0, 1000.0]))
+    assert math.exp(lq) == pytest.approx(Q_LIMITS[0]) and f == pytest.approx(36000.0)
+    qs = [model.q_f0(t)[0] for t in model.theta_variants(model.theta_start(12.0))]
+    assert qs == pytest.approx([6.0, 12.0 / math.sqrt(2.0), 12.0])
+    qs = [model.q_f0(t)[0] for t in model.theta_variants(model.theta_start(1.5))]
+    assert qs == pytest.approx([1.0, 1.5 / math.sqrt(2.0), 1.5])
+    scan = np.array([model.q_f0(t) for t in model.scan_thetas(40500.0)])
+    assert scan[:, 0] == pytest.approx(P.SCAN_Q) and np.all(scan[:, 1] == 40500.0)
+
+
+def test_no_fit_without_an_arrival_or_without_room_for_the_drive(model):
+    """Noise alone (free or held) and a lag too near the recording's end for the drive:
+    no fit; a sigma of 0 is read as 1e-12 of the recording's peak."""
+    rng = np.random.default_rng(5)
+    noise = 1e-3 * rng.standard_normal(4000)
+    assert fit_arrival(noise, 1500.0, model=model, sigma=1e-3) is None
+    assert fit_arrival(noise, 1500.0, model=model, sigma=1e-3, hold=True) is None
+    x = _received(12.0, [1500.25], [1.0])
+    assert fit_arrival(x[:1550], 1540.0, model=model, sigma=1e-6) is None
+    f0 = fit_arrival(x, 1500.25, model=model, sigma=0.0)
+    f1 = fit_arrival(x, 1500.25, model=model, sigma=1e-12 * float(np.max(np.abs(x))))
+    assert f0.onset == f1.onset and f0.sigma == f1.sigma
+
+
+@pytest.mark.parametrize("hold", [False, True])
+def test_chi2_degrees_of_freedom_and_misfit_z(model, hold):
+    """In noise: ``chi2`` is the residual's sum of squares over sigma^2, within 4 of its
+    standard deviations ``sqrt(2 dof)`` of the degrees of freedom ``dof = n - 3 k - 2``
+    (measured |misfit_z| 0.05-1.83); ``misfit_z`` is that z; ``n_par`` counts 3 per path
+    and the 2 transducer parameters unless they were held."""
+    rng = np.random.default_rng(11)
+    x = _received(12.0, [1500.25, 1500.25 + 0.3e-3 * FS], [1.0, 0.6])
+    for _ in range(3):
+        y = x + 1e-3 * rng.standard_normal(len(x))
+        f = fit_arrival(y, 1500.25, model=model, sigma=1e-3, hold=hold, q0=12.0)
+        k = f.n_paths
+        dof = model.segment - 3 * k - 2
+        assert k == 2 and f.n_par == 3 * k + (0 if hold else 2)
+        assert f.misfit_z == pytest.approx((f.chi2 - dof) / math.sqrt(2.0 * dof), rel=1e-9)
+        assert abs(f.misfit_z) < 4.0
