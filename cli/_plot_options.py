@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import click
-from rangekit_cli._options import note
 
 
 def figure_output(f):
@@ -32,7 +31,3 @@ def check_figure(output: str):
     from rangekit.plot import check_figure_path
 
     return check_figure_path(output)
-
-
-def wrote(output: str, what: str) -> None:
-    note(f"wrote {output} ({what})")

@@ -62,6 +62,7 @@ def design_beep(amplitude, fs, output, **beep_kw):
     import numpy as np
 
     from rangekit.io.audio import write_audio
+    from rangekit.io.notes import beep_note
     from rangekit.signals.beep import beep_continuous, check_beep_fits
 
     beep = make_beep(beep_kw, amplitude=amplitude)
@@ -69,11 +70,7 @@ def design_beep(amplitude, fs, output, **beep_kw):
     check_beep_fits(beep, fs=rate, what="--fs")
     x = beep_continuous(np.arange(int(np.ceil(beep.duration_s * rate))) / rate, beep=beep)
     write_audio(output, x, fs=rate, subtype="PCM_16")
-    note(
-        f"wrote {output}: {beep.n_bursts} x {beep.f_hz:g} Hz bursts of "
-        f"{beep.burst_s * 1e3:.1f} ms, "
-        f"{beep.spacing_s * 1e3:.1f} ms apart, {beep.duration_s:.3f} s at {rate:g} Hz"
-    )
+    note(beep_note(output, beep, fs=rate))
 
 
 @design.command("barker")
@@ -129,6 +126,7 @@ def design_barker(code, carrier, cycles_per_bit, amplitude, fs, output):
     from rangekit_cli._options import make_burst
 
     from rangekit.io.audio import write_audio
+    from rangekit.io.notes import burst_note
     from rangekit.signals.barker import CodedBurst, burst_waveform
 
     b = make_burst(
@@ -136,11 +134,7 @@ def design_barker(code, carrier, cycles_per_bit, amplitude, fs, output):
     )
     burst = CodedBurst(b.code, b.carrier_hz, b.cycles_per_bit, amplitude, fs)
     write_audio(output, burst_waveform(burst), fs=fs, subtype="PCM_16")
-    chips = "".join("+" if c > 0 else "-" for c in burst.code)
-    note(
-        f"wrote {output}: code {chips} on {burst.carrier_hz:g} Hz, {burst.cycles_per_bit} "
-        f"cycles per chip, {burst.duration_s * 1e6:.1f} us at {fs:g} Hz"
-    )
+    note(burst_note(output, burst))
 
 
 @design.command("sweep")
@@ -215,7 +209,8 @@ def design_sweep(f0, f1, duration, fs, fade, amplitude, output):
       rangekit design sweep --f0 20 --f1 20000 --duration 1 --fs 48000 -o full.wav
     """
     from rangekit.io.audio import write_audio
-    from rangekit.signals.probe import DEFAULT_FADE_S, linear_sweep
+    from rangekit.io.notes import sweep_note
+    from rangekit.signals.probe import linear_sweep
 
     for opt, f in (("--f0", f0), ("--f1", f1)):
         if f >= 0.5 * fs:
@@ -231,10 +226,4 @@ def design_sweep(f0, f1, duration, fs, fade, amplitude, output):
         )
     probe = linear_sweep(f0, f1, duration, fs=fs, fade_s=fade, amplitude=amplitude)
     write_audio(output, probe.samples, fs=fs, subtype="PCM_16")
-    lo, hi = probe.band_hz()
-    fade_s = min(DEFAULT_FADE_S, duration / 10.0) if fade is None else fade
-    note(
-        f"wrote {output}: linear sweep {f0:g}-{f1:g} Hz, {duration:g} s "
-        f"({len(probe.samples)} samples at {fs:g} Hz), fades {fade_s * 1e3:.1f} ms, "
-        f"99.9 % of the energy in {lo / 1e3:.2f}-{hi / 1e3:.2f} kHz"
-    )
+    note(sweep_note(output, probe, f0_hz=f0, f1_hz=f1, duration_s=duration, fade_s=fade))

@@ -10,8 +10,8 @@ from __future__ import annotations
 import math
 
 import click
-from rangekit_cli._options import debug_option, verbosity_options
-from rangekit_cli._plot_options import check_figure, figure_output, wrote
+from rangekit_cli._options import debug_option, note, verbosity_options
+from rangekit_cli._plot_options import check_figure, figure_output
 from rangekit_cli.plot_signal_cmd import matched_cmd, spectrogram_cmd
 
 
@@ -61,18 +61,12 @@ def ranges_cmd(series, truth, output):
       rangekit plot ranges series.csv --truth 2.0 -o ranges.png
       rangekit plot ranges series.csv --truth s.json -o ranges.png
     """
+    from rangekit.io.notes import ranges_note
     from rangekit.plot.jobs import ranges_figure
 
     check_figure(output)
     fig = ranges_figure(series, output, truth=_parse_truth(truth))
-    what = f"{len(fig.series)} series, {fig.n_ranges} ranges"
-    agree = fig.agreement
-    if agree is not None and agree.n:
-        what += (
-            f"; against the truth: median |error| {1e3 * agree.median_abs_error_m:.1f} mm, "
-            f"{100 * agree.within_2sigma:.0f} % within 2 sigma"
-        )
-    wrote(output, what)
+    note(ranges_note(output, fig))
 
 
 def _parse_truth(text: str | None) -> float | str | None:
@@ -125,13 +119,12 @@ def track_cmd(track, map_path, truth, ellipses, output):
     target; ellipses from var_x_m2, var_y_m2 (cov_xy_m2) or sigma_x_m, sigma_y_m; circles
     of radius spread_m when only that is given (particle filter).
     """
+    from rangekit.io.notes import track_figure_note
     from rangekit.plot.jobs import track_figure
 
     check_figure(output)
     out = track_figure(track, output, map_path=map_path, truth=truth, every=ellipses)
-    n_pts = sum(len(v) for v in out.xy_m.values())
-    n_ell = sum(len(v) for v in out.ellipse_rows.values())
-    wrote(output, f"{len(out.xy_m)} track(s), {n_pts} points, {n_ell} ellipses/circles")
+    note(track_figure_note(output, out))
 
 
 @plot.command("cdf")
@@ -151,9 +144,9 @@ def cdf_cmd(results, by, output):
     RESULTS rows need distance_m and true_distance_m; rows where either is empty (null),
     or whose status is not "ok", are skipped and counted in the title.
     """
+    from rangekit.io.notes import cdf_note
     from rangekit.plot.jobs import cdf_figure
 
     check_figure(output)
     batch = cdf_figure(results, output, by=by)
-    used = batch.n_rows - batch.n_skipped
-    wrote(output, f"{len(batch.errors_m)} curve(s), {used} rows, {batch.n_skipped} skipped")
+    note(cdf_note(output, batch))

@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import math
-
 import click
 from rangekit_cli._options import (
     FiniteRange,
@@ -13,13 +11,14 @@ from rangekit_cli._options import (
     detector_option,
     load_template,
     make_beep,
+    note,
     refuse_beep_options,
     speed_of_sound_option,
     temperature_option,
     template_option,
     verbosity_options,
 )
-from rangekit_cli._plot_options import channel_option, check_figure, figure_output, wrote
+from rangekit_cli._plot_options import channel_option, check_figure, figure_output
 from rangekit_cli.ultrasonic_options import ultrasonic_options, ultrasonic_setup
 
 
@@ -55,6 +54,7 @@ def spectrogram_cmd(
       rangekit plot spectrogram x.wav --t0 0.1 --t1 0.3 --fmin 14000 --fmax 18000 -o zoom.png
       rangekit plot spectrogram sw.wav --template sweep.wav -o sw.png
     """
+    from rangekit.io.notes import spectrogram_note
     from rangekit.plot.jobs import spectrogram_figure
 
     check_figure(output)
@@ -73,9 +73,7 @@ def spectrogram_cmd(
         recording, output, channel=channel, beep=make_beep(beep_kw), detector=detector,
         probe=probe, t0_s=t0_s, t1_s=t1_s, fmin_hz=fmin_hz, fmax_hz=fmax_hz,
     )  # fmt: skip
-    shown = len(fig.plot.onsets_s)
-    inside = f", {shown} in the window" if shown != fig.n_onsets else ""
-    wrote(output, f"{fig.n_onsets} onset(s) marked{inside}")
+    note(spectrogram_note(output, fig))
 
 
 @click.command("matched")
@@ -106,6 +104,7 @@ def matched_cmd(recording, scheme, channel, window, temp_c, speed, output, **kw)
     The options are those of `rangekit range --scheme oneway|echo`; the marked path is
     the one that command reports for this channel and window (its distance in the title).
     """
+    from rangekit.io.notes import matched_note
     from rangekit.plot.jobs import matched_figure
     from rangekit.ranging.config import Medium
 
@@ -115,6 +114,4 @@ def matched_cmd(recording, scheme, channel, window, temp_c, speed, output, **kw)
     trace = matched_figure(
         recording, output, setup=setup, medium=medium, channel=channel, window=window
     )
-    tof = trace.tof
-    found = f"{tof.distance_m:.4f} m" if math.isfinite(tof.distance_m) else "nothing detected"
-    wrote(output, f"channel {channel}, window {window}: {found}")
+    note(matched_note(output, trace, channel=channel, window=window))

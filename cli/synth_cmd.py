@@ -7,8 +7,6 @@ The group and ``synth beepbeep``; ``synth oneway`` and ``synth echo`` live in
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import click
 from rangekit_cli._options import (
     FiniteRange,
@@ -166,6 +164,7 @@ def synth_beepbeep(
       rangekit synth beepbeep --distance 2 --exchanges 20 --period 2 --ppm 0,40 \\
           --mono --seed 1 -o series.wav
     """
+    from rangekit.io.notes import synthesis_note
     from rangekit.sim import ShoeboxRoom
     from rangekit.sim.scenarios import synth_beepbeep
 
@@ -203,8 +202,4 @@ def synth_beepbeep(
         )  # fmt: skip
     describe_seed(seed)
     write(syn, output)
-    truth = syn.sidecar(output)
-    pairs = ", ".join(f"{p['a']}-{p['b']}: {p['distance_m']:.4f} m" for p in truth["pairs"])
-    note(
-        f"wrote {', '.join(truth['files'])} and {Path(output).with_suffix('.json').name} ({pairs})"
-    )
+    note(synthesis_note(syn, output))

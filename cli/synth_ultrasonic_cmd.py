@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import math
-from pathlib import Path
 
 import click
 from rangekit_cli._options import FiniteRange, float_list, note
@@ -113,6 +112,7 @@ def synth_oneway(
       rangekit range --scheme oneway ow.wav --period 0.2 --tx-order 0,1 --format csv -o r.csv
       rangekit locate --beacons ow.beacons.json --ranges r.csv
     """
+    from rangekit.io.notes import synthesis_note
     from rangekit.sim import ShoeboxRoom
     from rangekit.sim.scenarios import synth_oneway
 
@@ -143,14 +143,7 @@ def synth_oneway(
     )  # fmt: skip
     write(syn, output)
     describe_seed(seed)
-    out, truth = Path(output), syn.sidecar(output)
-    n_tx = len(truth["setup"]["tx_order"])  # the transmitters fired, ids 0..n_tx - 1
-    note(
-        f"wrote {out.name} ({len(truth['windows'])} windows x {syn.recordings[0].shape[1]} "
-        f"receivers), {out.with_suffix('.json').name} and {truth['beacons']} (Tx ids "
-        f"0-{n_tx - 1} in firing order: range with --tx-order "
-        f"{','.join(str(i) for i in range(n_tx))})"
-    )
+    note(synthesis_note(syn, output))
 
 
 @click.command("echo")
@@ -197,6 +190,7 @@ def synth_echo(map_path, poses, mount, snr_db, no_noise, temp_c, q, fs, seed, im
       rangekit range --scheme echo echo.wav --period 0.07
     """
     from rangekit.floorplan import load_floorplan
+    from rangekit.io.notes import synthesis_note
     from rangekit.sim.scenarios import synth_echo
 
     plan = load_floorplan(map_path)
@@ -210,8 +204,4 @@ def synth_echo(map_path, poses, mount, snr_db, no_noise, temp_c, q, fs, seed, im
     )  # fmt: skip
     write(syn, output)
     describe_seed(seed)
-    out, truth = Path(output), syn.truth
-    ranges = ", ".join(
-        "-" if w["distance_m"] is None else f"{w['distance_m']:.3f} m" for w in truth["windows"]
-    )
-    note(f"wrote {out.name} and {out.with_suffix('.json').name} (model: {ranges})")
+    note(synthesis_note(syn, output))

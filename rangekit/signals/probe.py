@@ -42,7 +42,7 @@ import numpy as np
 from rangekit import _validate as V
 from rangekit.errors import AudioFormatError, IncompatibleInputError, InvalidParameterError
 
-__all__ = ["BAND_ENERGY", "Probe", "linear_sweep", "read_probe"]
+__all__ = ["BAND_ENERGY", "Probe", "linear_sweep", "read_probe", "sweep_fade_s"]
 
 #: Fraction of the probe's energy that :meth:`Probe.band_hz` must enclose.
 BAND_ENERGY = 0.999
@@ -243,7 +243,7 @@ def linear_sweep(
     if f0 == f1:
         raise InvalidParameterError(f"f0_hz and f1_hz are both {f0:g} Hz; a sweep needs two")
     T = V.in_range("duration_s", duration_s, 1e-3, 600.0)
-    fade = min(0.005, T / 10.0) if fade_s is None else V.in_range("fade_s", fade_s, 0.0, T / 2)
+    fade = sweep_fade_s(T) if fade_s is None else V.in_range("fade_s", fade_s, 0.0, T / 2)
     amplitude = V.in_range("amplitude", amplitude, 1e-6, 1.0)
     n = int(round(T * fs))
     t = np.arange(n) / fs
@@ -255,6 +255,18 @@ def linear_sweep(
         x[n - m :] *= ramp[::-1]
     x *= amplitude / max(float(np.max(np.abs(x))), 1e-300)
     return Probe(x, fs, f"sweep {f0:g}-{f1:g} Hz, {T:g} s")
+
+
+def sweep_fade_s(duration_s: float) -> float:
+    """The fade :func:`linear_sweep` gives a sweep of ``duration_s`` by default, s:
+    ``min(DEFAULT_FADE_S, duration_s / 10)``.
+
+    Examples
+    --------
+    >>> sweep_fade_s(0.1), sweep_fade_s(0.02)
+    (0.005, 0.002)
+    """
+    return min(DEFAULT_FADE_S, duration_s / 10.0)
 
 
 def read_probe(path: str | os.PathLike, *, channel: int | None = None) -> Probe:

@@ -1,0 +1,135 @@
+"""rangekit.io.notes: each note of ``design``, ``synth`` and ``plot`` from the library's
+results, exactly as the commands printed it before the notes moved out of ``cli/``
+(strings taken from real runs of the old commands)."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from rangekit.errors import InvalidParameterError
+from rangekit.floorplan import load_floorplan
+from rangekit.io import notes
+from rangekit.plot.figures import TrackPlot
+from rangekit.plot.inputs import BatchErrors
+from rangekit.plot.jobs import RangesFigure, SpectrogramFigure, ranges_figure
+from rangekit.signals import Beep
+from rangekit.signals.barker import CodedBurst
+from rangekit.signals.probe import linear_sweep
+from rangekit.sim.scenarios import synth_beepbeep, synth_echo, synth_oneway
+
+PLAN = Path(__file__).resolve().parents[2] / "fixtures_audio" / "corridor_plan.json"
+
+
+def test_beep_note():
+    assert notes.beep_note("beep.wav", Beep(), fs=44100.0) == (
+        "wrote beep.wav: 4 x 16000 Hz bursts of 10.0 ms, 113.4 ms apart, 0.350 s at 44100 Hz"
+    )
+    # the file's rate, not the beep's, is the one named
+    assert notes.beep_note("b48.wav", Beep(f_hz=17500.0), fs=48000.0).endswith(
+        "4 x 17500 Hz bursts of 10.0 ms, 113.4 ms apart, 0.350 s at 48000 Hz"
+    )
+
+
+def test_burst_note():
+    assert notes.burst_note("barker.wav", CodedBurst()) == (
+        "wrote barker.wav: code +++--+- on 40000 Hz, 3 cycles per chip, 525.0 us at 192000 Hz"
+    )
+    ping = CodedBurst((1.0,), 40000.0, 8, 0.9, 192000.0)
+    assert notes.burst_note("ping.wav", ping) == (
+        "wrote ping.wav: code + on 40000 Hz, 8 cycles per chip, 200.0 us at 192000 Hz"
+    )
+
+
+def test_sweep_note_default_and_given_fade():
+    p = linear_sweep(17000.0, 20000.0, 0.1)
+    assert notes.sweep_note("sweep.wav", p, f0_hz=17000.0, f1_hz=20000.0, duration_s=0.1) == (
+        "wrote sweep.wav: linear sweep 17000-20000 Hz, 0.1 s (4410 samples at 44100 Hz), "
+        "fades 5.0 ms, 99.9 % of the energy in 16.98-20.02 kHz"
+    )
+    p = linear_sweep(2000.0, 6000.0, 0.1, fade_s=0.003)
+    assert notes.sweep_note(
+        "s2.wav", p, f0_hz=2000.0, f1_hz=6000.0, duration_s=0.1, fade_s=0.003
+    ) == (
+        "wrote s2.wav: linear sweep 2000-6000 Hz, 0.1 s (4410 samples at 44100 Hz), "
+        "fades 3.0 ms, 99.9 % of the energy in 1.92-6.08 kHz"
+    )
+    # a short sweep's default fade is a tenth of it (linear_sweep's rule, not a copy)
+    p = linear_sweep(2000.0, 6000.0, 0.02)
+    assert "fades 2.0 ms" in notes.sweep_note(
+        "s3.wav", p, f0_hz=2000.0, f1_hz=6000.0, duration_s=0.02
+    )
+
+
+def test_synthesis_note_beepbeep():
+    syn = synth_beepbeep(distance_m=2.0, snr_db=None, seed=1)
+    assert notes.synthesis_note(syn, "out/x.wav") == "wrote x.wav and x.json (0-1: 2.0000 m)"
+    three = synth_beepbeep(positions_m=[(1, 1, 1.2), (4, 2, 1.2), (2, 4, 1.2)], snr_db=None, seed=2)
+    assert notes.synthesis_note(three, "three.wav") == (
+        "wrote three.wav and three.json (0-1: 3.1639 m, 0-2: 3.1639 m, 1-2: 2.8302 m)"
+    )
+    mono = synth_beepbeep(distance_m=3.3, snr_db=None, mono=True, seed=1)
+    assert notes.synthesis_note(mono, "s.wav") == (
+        "wrote s_dev0.wav, s_dev1.wav and s.json (0-1: 3.3000 m)"
+    )
+
+
+def test_synthesis_note_oneway_and_echo():
+    ow = synth_oneway(txs_m=[(1, 0.5), (-1, 2)], pose=(0.2, 0.1, math.radians(30)), seed=1)
+    assert notes.synthesis_note(ow, "ow.wav") == (
+        "wrote ow.wav (2 windows x 3 receivers), ow.json and ow.beacons.json (Tx ids 0-1 in "
+        "firing order: range with --tx-order 0,1)"
+    )
+    plan = load_floorplan(PLAN)
+    echo = synth_echo(plan, [(1.0, 1.0, math.pi / 2), (1.0, 1.5, math.pi / 2)], seed=1)
+    want = ", ".join(f"{w['distance_m']:.3f} m" for w in echo.truth["windows"])
+    assert notes.synthesis_note(echo, "e.wav") == f"wrote e.wav and e.json (model: {want})"
+    # a cycle out of the model's range is '-'
+    gone = SimpleNamespace(truth={"scheme": "echo", "windows": [{"distance_m": None}]})
+    gone.sidecar = lambda out: gone.truth
+    assert notes.synthesis_note(gone, "g.wav") == "wrote g.wav and g.json (model: -)"
+    bad = SimpleNamespace(sidecar=lambda out: {"scheme": "sonar"})
+    with pytest.raises(InvalidParameterError, match="sonar"):
+        notes.synthesis_note(bad, "b.wav")
+
+
+def test_plot_notes():
+    fig = SpectrogramFigure("x.wav#0", "changepoint", 2, SimpleNamespace(onsets_s=[0.2]))
+    assert (
+        notes.spectrogram_note("z.png", fig) == "wrote z.png (2 onset(s) marked, 1 in the window)"
+    )
+    fig = SpectrogramFigure("x.wav#0", "changepoint", 2, SimpleNamespace(onsets_s=[0.2, 0.3]))
+    assert notes.spectrogram_note("x.png", fig) == "wrote x.png (2 onset(s) marked)"
+    trace = SimpleNamespace(tof=SimpleNamespace(distance_m=3.02664))
+    assert notes.matched_note("mf.svg", trace, channel=0, window=1) == (
+        "wrote mf.svg (channel 0, window 1: 3.0266 m)"
+    )
+    trace = SimpleNamespace(tof=SimpleNamespace(distance_m=math.nan))
+    assert notes.matched_note("mf.svg", trace, channel=2, window=0) == (
+        "wrote mf.svg (channel 2, window 0: nothing detected)"
+    )
+    plot = TrackPlot({"0": np.zeros((52, 2))}, {"0": np.arange(6)}, 4)
+    assert notes.track_figure_note("t.png", plot) == (
+        "wrote t.png (1 track(s), 52 points, 6 ellipses/circles)"
+    )
+    batch = BatchErrors(None, {"": np.zeros(4)}, 5, 1)
+    assert notes.cdf_note("cdf.png", batch) == "wrote cdf.png (1 curve(s), 4 rows, 1 skipped)"
+    assert notes.ranges_note("r.png", RangesFigure([1], 5, None)) == (
+        "wrote r.png (1 series, 5 ranges)"
+    )
+
+
+def test_ranges_note_against_the_truth(tmp_path):
+    csv = tmp_path / "s.csv"
+    csv.write_text("t_s,a,b,distance_m,sigma_m\n0,0,1,2.001,0.002\n1,0,1,2.010,0.002\n"
+                   "2,0,1,1.999,0.002\n")  # fmt: skip
+    fig = ranges_figure(csv, tmp_path / "r.png", truth=2.0)
+    # errors 1, 10, 1 mm; two of three within 2 sigma = 4 mm
+    assert notes.ranges_note("r.png", fig) == (
+        "wrote r.png (1 series, 3 ranges; against the truth: median |error| 1.0 mm, "
+        "67 % within 2 sigma)"
+    )
