@@ -140,10 +140,49 @@ def coded_template(
     # and the cut below is relative to the rendered energy (4x left out up to 1.6x the
     # tail's share).
     n_tail = int(math.ceil(8.0 * (tail_db / 20.0) * math.log(10.0) * q / (math.pi * f0) * fs))
-    y = apply_chain(np.concatenate([drive, np.zeros(n_tail)]), (tx, rx), fs=fs)
+    y = _through((tx, rx), np.concatenate([drive, np.zeros(n_tail)]), fs)
     e = np.cumsum(y[::-1] ** 2)[::-1]
     keep = int(np.searchsorted(-e, -e[0] * 10.0 ** (-tail_db / 10.0)))
     return np.ascontiguousarray(y[: max(keep, len(drive))])
+
+
+def _through(transducers, x: np.ndarray, fs: float) -> np.ndarray:
+    """``apply_chain(x, transducers, fs=fs)``, rangekit's resonators without scipy.signal.
+
+    A :class:`Transducer` (exactly that class) is its biquad run here by
+    :func:`_biquad`, the same numbers as its ``apply`` (``scipy.signal.lfilter``; tested):
+    the one-way command builds its template before anything else would import
+    ``scipy.signal``, whose import alone cost 0.4-1.3 s (with ``scipy.stats``). Any other
+    transducer class filters by its own ``apply``.
+    """
+    y = np.asarray(x, dtype=np.float64)
+    for t in transducers:
+        if t is None:
+            continue
+        if type(t) is Transducer:
+            y = _biquad(*t.coefficients(fs=fs), y)
+        else:
+            y = apply_chain(y, (t,), fs=fs)
+    return y
+
+
+def _biquad(b: np.ndarray, a: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """``scipy.signal.lfilter(b, a, x)`` of a biquad (3 taps each, zero initial state),
+    bit for bit: the coefficients divided by ``a[0]``, then per sample the transposed
+    direct form II in lfilter's order of operations (``y = z0 + b0 x``, ``z0 = z1 + x b1
+    - y a1``, ``z1 = x b2 - y a2``; scipy's ``_lfilter`` C loop). A Python loop: for the
+    templates' few hundred samples (0.2 ms), not for recordings."""
+    a0 = float(a[0])
+    b0, b1, b2 = (float(v) / a0 for v in b)
+    _, a1, a2 = (float(v) / a0 for v in a)
+    z0 = z1 = 0.0
+    out = []
+    for xn in x.tolist():
+        yn = z0 + b0 * xn
+        z0 = z1 + xn * b1 - yn * a1
+        z1 = xn * b2 - yn * a2
+        out.append(yn)
+    return np.array(out, dtype=np.float64)
 
 
 def _analytic_fir(h: np.ndarray, tail: float = _ANALYTIC_TAIL) -> tuple[np.ndarray, int]:

@@ -180,3 +180,43 @@ def test_median_by_one_partition_equals_numpy():
         for v in (rng.normal(size=n), rng.integers(0, 3, n).astype(float),
                   rng.normal(size=n).astype(np.float32)):  # fmt: skip
             assert M._median(v) == float(np.median(v))
+
+
+def test_biquad_equals_lfilter_bit_for_bit():
+    """``_biquad`` is ``scipy.signal.lfilter`` of the resonator's biquad exactly (random
+    resonators, rates, lengths, amplitudes, and ``a[0] != 1``); the template through
+    rangekit's resonators equals the one through ``apply_chain`` (lfilter); another
+    transducer class still filters by its own ``apply``."""
+    from scipy.signal import lfilter
+
+    from rangekit.signals.transducer import BandpassTransducer, apply_chain
+
+    rng = np.random.default_rng(3)
+    for _ in range(100):
+        fs = float(rng.choice([44100.0, 96000.0, 192000.0, 500000.0]))
+        t = Transducer(f0_hz=float(rng.uniform(0.05, 0.45) * fs), q=float(rng.uniform(0.5, 100)))
+        x = rng.standard_normal(int(rng.integers(1, 600))) * 10.0 ** rng.uniform(-5, 3)
+        b, a = t.coefficients(fs=fs)
+        assert np.array_equal(M._biquad(b, a, x), lfilter(b, a, x))
+        a2 = a * rng.uniform(0.5, 2.0)
+        assert np.array_equal(M._biquad(b, a2, x), lfilter(b, a2, x))
+    x = rng.standard_normal(500)
+    for chain in ((Transducer(), Transducer(q=12.0, f0_hz=39000.0)), (None, Transducer()),
+                  (BandpassTransducer(q=12.0), Transducer())):  # fmt: skip
+        assert np.array_equal(M._through(chain, x, FS), apply_chain(x, chain, fs=FS))
+
+
+def test_coded_template_imports_no_scipy_signal():
+    """The one-way template (rangekit's resonators) is built without ``scipy.signal``
+    (its import, with ``scipy.stats``, cost 0.4-1.3 s of the one-way command)."""
+    import subprocess
+    import sys
+
+    code = (
+        "import sys; from rangekit.detect.matched import coded_template; "
+        "from rangekit.signals.transducer import Transducer; "
+        "coded_template(fs=192000.0, tx=Transducer(), rx=Transducer()); "
+        "print('scipy.signal' in sys.modules)"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "False"
