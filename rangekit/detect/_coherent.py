@@ -61,8 +61,8 @@ def real_side_ratio(self_resp: np.ndarray, reach: int) -> float:
 
 #: Half width (samples) of the windowed-sinc interpolation of the real part.
 SINC_HALF = 16
-#: Kaiser window parameter of that interpolation (band-limited outputs below 0.95 of the
-#: Nyquist frequency are reconstructed to about 1e-4 of their peak).
+#: Kaiser window parameter of that interpolation (a tone below 0.84 of the Nyquist
+#: frequency is reconstructed to 1e-4 of its peak; 0.9 of it to 5e-2: docs/evidence.md).
 SINC_BETA = 8.0
 
 
