@@ -108,7 +108,6 @@ def duhl_ranges_cmd(**kw):
 
 
 def _run(filter_, *, log, beacons, rig, initial_pose, gate, no_gate, fmt, output, **given):
-    from rangekit.errors import InvalidParameterError, LogFormatError
     from rangekit.io.duhllog import read_beacons, read_duhl_log
     from rangekit.localize.duhl import rig_inputs, track_log, track_report
 
@@ -135,13 +134,7 @@ def _run(filter_, *, log, beacons, rig, initial_pose, gate, no_gate, fmt, output
         variant="ranges" if filter_ == "duhl-ranges" else "duhl",
         **gate_kw,
     )
-    try:
-        trk = track_log(dlog, bcn, config=config, initial_pose=pose0, name=name,
-                        beacon_file=str(beacons))  # fmt: skip
-    except InvalidParameterError as e:
-        # The options are checked above, so what is left is the log itself (no odometry,
-        # never two transmitters heard to start from).
-        msg = str(e).replace("initial_pose not given", "--initial-pose not given")
-        raise LogFormatError(f"{name}: the filter cannot run on this log: {msg}") from e
+    trk = track_log(dlog, bcn, config=config, initial_pose=pose0, name=name,
+                    beacon_file=str(beacons))  # fmt: skip
     write_report(track_report(trk, log=name, beacons=str(beacons), initial_pose=pose0),
                  fmt, output)  # fmt: skip

@@ -41,7 +41,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from rangekit import _validate as V
-from rangekit.errors import IncompatibleInputError, InvalidParameterError
+from rangekit.errors import IncompatibleInputError, InvalidParameterError, LogFormatError
 from rangekit.localize import _duhl_kernels as K
 from rangekit.localize._uhl_kernels import uhl_core
 from rangekit.localize.ekf import chi2_gate
@@ -303,27 +303,34 @@ def _tx_index(tx_ids, dist_tx: np.ndarray, n_tx: int) -> np.ndarray:
     return out
 
 
+class _MeasurementError(InvalidParameterError):
+    """A problem of the measurements (odometry and distances), not of a setting:
+    :func:`track_log` reports it as the log's (:class:`~rangekit.errors.LogFormatError`,
+    the log named); :func:`track_duhl`'s callers see an InvalidParameterError."""
+
+
 def _check_inputs(odo_t, v_right, v_left, dist_t, dist_tx, dist_d, tx_xyz):
+    E = _MeasurementError
     odo_t = _as_1d("odo_t", odo_t)
     n = len(odo_t)
     if n == 0:
-        raise InvalidParameterError("the log has no odometry rows")
+        raise E("the log has no odometry rows")
     if not np.all(np.isfinite(odo_t)) or np.any(np.diff(odo_t) < 0.0):
-        raise InvalidParameterError("odo_t must be finite and non-decreasing")
+        raise E("odo_t must be finite and non-decreasing")
     vr = _as_1d("v_right", v_right, n)
     vl = _as_1d("v_left", v_left, n)
     dist_t = _as_1d("dist_t", dist_t)
     m = len(dist_t)
     if not np.all(np.isfinite(dist_t)) or np.any(np.diff(dist_t) < 0.0):
-        raise InvalidParameterError("dist_t must be finite and non-decreasing")
+        raise E("dist_t must be finite and non-decreasing")
     dist_tx = np.asarray(dist_tx)
     if dist_tx.shape != (m,) or (m and not np.issubdtype(dist_tx.dtype, np.integer)):
-        raise InvalidParameterError(f"dist_tx must be {m} integer Tx ids, got {dist_tx!r}")
+        raise E(f"dist_tx must be {m} integer Tx ids, got {dist_tx!r}")
     d = np.asarray(dist_d, dtype=np.float64).reshape(-1, 3) if m else np.empty((0, 3))
     if d.shape != (m, 3):
-        raise InvalidParameterError(f"dist_d must have shape ({m}, 3), got {np.shape(dist_d)}")
+        raise E(f"dist_d must have shape ({m}, 3), got {np.shape(dist_d)}")
     if np.any(np.isinf(d)) or np.any(d < 0.0):
-        raise InvalidParameterError("dist_d must be >= 0 (NaN marks a missed receiver)")
+        raise E("dist_d must be >= 0 (NaN marks a missed receiver)")
     tx = np.asarray(tx_xyz, dtype=np.float64)
     if tx.ndim != 2 or tx.shape[1] != 3 or tx.shape[0] < 2:
         raise InvalidParameterError(f"tx_xyz must have shape (n >= 2, 3), got {tx.shape}")
@@ -333,7 +340,7 @@ def _check_inputs(odo_t, v_right, v_left, dist_t, dist_tx, dist_d, tx_xyz):
                          ("dist_d", d, MAX_COORD_M), ("tx_xyz", tx, MAX_COORD_M)):  # fmt: skip
         big = np.abs(np.nan_to_num(v)) > lim
         if np.any(big):
-            raise InvalidParameterError(
+            raise (InvalidParameterError if name == "tx_xyz" else E)(
                 f"{name} has a value of {v[big].flat[0]:.3g}, beyond +-{lim:g} (the filter's "
                 "arithmetic would overflow)"
             )
@@ -463,9 +470,9 @@ def track_duhl(
             raise InvalidParameterError("initial_cov needs initial_pose")
         found = _start_from_uhl(odo_t, dist_t, idx, d, tx, config)
         if found is None:
-            raise InvalidParameterError(
-                "no start pose: initial_pose not given and no two distinct transmitters "
-                "were heard on all three receivers"
+            raise _MeasurementError(
+                "no start pose: no two distinct transmitters were heard on all three "
+                "receivers (give the initial pose)"
             )
         start, x0 = found
         p0 = np.diag(np.asarray(config.init_sigma, dtype=np.float64) ** 2)
@@ -540,8 +547,24 @@ def track_log(
     IncompatibleInputError
         A distance row names a transmitter the beacons lack (its time and id named), or
         the log has distances of more than three receivers.
+    LogFormatError
+        The filter cannot run on the log (``name`` first): no odometry rows, a value
+        beyond the filter's arithmetic, or no start pose (no ``initial_pose``, and no two
+        distinct transmitters heard on all three receivers).
     InvalidParameterError
-        As :func:`track_duhl` (e.g. no start pose).
+        As :func:`track_duhl`, for the settings (``config``, ``initial_pose``,
+        ``initial_cov``) and the beacons.
+
+    Examples
+    --------
+    >>> from rangekit.io.duhllog import Beacons, DUHLLog, DistanceRows, OdometryRows
+    >>> log = DUHLLog(OdometryRows(np.array([0.0, 0.1]), np.zeros(2), np.zeros(2)),
+    ...               DistanceRows(np.array([0.05]), np.array([0]), np.ones((1, 3))))
+    >>> bcn = Beacons(np.array([0, 1]), np.array([[0.0, 0.0, 2.5], [1.0, 0.0, 2.5]]))
+    >>> track_log(log, bcn, name="run.csv")  # doctest: +ELLIPSIS
+    Traceback (most recent call last):
+    ...
+    rangekit.errors.LogFormatError: run.csv: the filter cannot run on this log: no start pose: ...
     """
     o, d = log.odometry, log.distances
     known = {int(i) for i in beacons.ids.tolist()}
@@ -560,19 +583,22 @@ def track_log(
                 "receivers (Kim & Kim 2013 eq (1)); use 'rangekit track range-ekf --rig'"
             )
         d_m = d_m[:, :3]
-    return track_duhl(
-        o.t_s,
-        o.v_right_mps,
-        o.v_left_mps,
-        d.t_s,
-        d.tx,
-        d_m,
-        beacons.xyz_m,
-        tx_ids=beacons.ids,
-        config=config,
-        initial_pose=initial_pose,
-        initial_cov=initial_cov,
-    )
+    try:
+        return track_duhl(
+            o.t_s,
+            o.v_right_mps,
+            o.v_left_mps,
+            d.t_s,
+            d.tx,
+            d_m,
+            beacons.xyz_m,
+            tx_ids=beacons.ids,
+            config=config,
+            initial_pose=initial_pose,
+            initial_cov=initial_cov,
+        )
+    except _MeasurementError as e:  # the measurements are the log's
+        raise LogFormatError(f"{name or 'the log'}: the filter cannot run on this log: {e}") from e
 
 
 def track_rows(track: DUHLTrack) -> tuple[tuple[str, ...], np.ndarray]:

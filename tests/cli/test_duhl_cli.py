@@ -334,17 +334,35 @@ def test_log_missing_a_column(tmp_path, log1):
 
 
 def test_log_the_filter_cannot_start_from(tmp_path, log1):
+    """The library's message, not rewritten by the command: one line, exit 4 (a data
+    file the filter cannot use), the log named."""
     header = log1[0].read_text().splitlines()[0]
     # Header only: no odometry.
     log = _bad_log(tmp_path, header + "\n")
-    assert_error(_track(log, log1[1]), 4, "bad_log.csv", "odometry")
+    line = assert_error(_track(log, log1[1]), 4, "bad_log.csv", "odometry")
+    assert line == (
+        f"rangekit: error: {log}: the filter cannot run on this log: the log has no odometry rows"
+    )
     # One transmitter only: no UHL start pose (fine with --initial-pose).
     lines = log1[0].read_text().splitlines()
     keep = [ln for ln in lines[1:] if ",odometry," in ln or ln.split(",")[2] == "1"]
     log.write_text("\n".join([header, *keep]) + "\n")
-    assert_error(_track(log, log1[1]), 4, "bad_log.csv", "start")
+    for filt in ("duhl", "duhl-ranges"):
+        line = assert_error(_track(log, log1[1], filt=filt), 4)
+        assert line == (
+            f"rangekit: error: {log}: the filter cannot run on this log: no start pose: no two "
+            "distinct transmitters were heard on all three receivers (give the initial pose)"
+        )
     r = ok(_track(log, log1[1], "--initial-pose", "0,0,0"))
     assert "warning: " in r.stderr
+    # A speed beyond the filter's arithmetic is the log's too (exit 4, not 2).
+    rows = log1[0].read_text().splitlines()
+    k = next(i for i, ln in enumerate(rows) if ",odometry," in ln)
+    cells = rows[k].split(",")
+    cells[header.split(",").index("v_right_mps")] = "1e9"
+    rows[k] = ",".join(cells)
+    log.write_text("\n".join(rows) + "\n")
+    assert_error(_track(log, log1[1]), 4, "bad_log.csv", "v_right", "1e+09")
 
 
 @pytest.mark.parametrize(
