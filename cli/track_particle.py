@@ -109,16 +109,10 @@ def particle_cmd(log, steps, map_path, ranges, start, method, mode, particles, m
     """
     from rangekit_cli._options import float_list
 
-    from rangekit.errors import IncompatibleInputError, InvalidParameterError
+    from rangekit.errors import InvalidParameterError
     from rangekit.floorplan import load_floorplan
     from rangekit.io.steplog import read_range_log, read_step_log
-    from rangekit.localize.particle import (
-        check_inputs,
-        default_mode,
-        rig_config,
-        track_particles,
-        track_report,
-    )
+    from rangekit.localize.particle import default_mode, rig_config, track_particles, track_report
 
     if log is not None and steps is not None:
         raise click.UsageError("give the step log once: as STEPS.csv or as --steps, not both")
@@ -153,20 +147,16 @@ def particle_cmd(log, steps, map_path, ranges, start, method, mode, particles, m
         if "n_particles" not in str(e):
             raise
         raise click.BadParameter(str(e), param_hint="--particles") from None
-    if rig is not None:  # and how they fit the rig (exit 5)
+    if rig is not None:  # and how they fit the rig (exit 5, IncompatibleInputError)
         from rangekit.rig import read_rig
 
-        try:
-            config = rig_config(read_rig(rig), name=str(rig), **cfg)
-        except InvalidParameterError as e:
-            raise IncompatibleInputError(str(e)) from None
+        config = rig_config(read_rig(rig), name=str(rig), **cfg)
     slog = read_step_log(steps, name=str(steps))
     rlog = None if ranges is None else read_range_log(ranges, name=str(ranges))
     plan = None if map_path is None else load_floorplan(map_path)
-    check_inputs(plan, rlog, xy0, config, plan_name=str(map_path), ranges_name=str(ranges),
-                 rig_name=None if rig is None else str(rig), mounts_name="--mounts",
-                 start_name="--start")  # fmt: skip
-    trk = track_particles(plan, slog, rlog, xy0, config, rng=seed)
+    names = {"plan_name": str(map_path), "ranges_name": str(ranges), "mounts_name": "--mounts",
+             "rig_name": None if rig is None else str(rig), "start_name": "--start"}  # fmt: skip
+    trk = track_particles(plan, slog, rlog, xy0, config, rng=seed, names=names)
     rep = track_report(trk, log=str(steps), start_xy=xy0, plan=map_path, ranges=ranges,
                        rig=rig, seed=seed)  # fmt: skip
     write_report(rep, fmt, output)

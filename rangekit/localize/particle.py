@@ -32,7 +32,7 @@ Examples
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -322,9 +322,12 @@ def rig_config(
 
     Raises
     ------
+    IncompatibleInputError
+        The rig does not fit the filter: its odometry is not ``steps``, a tag sits at the
+        body centre without a given axis, or ``mount_angles_rad`` does not give one angle
+        per tag (exit code 5).
     InvalidParameterError
-        If the rig's odometry is not ``steps``, a tag sits at the body centre without a
-        given axis, or ``mount_angles_rad`` does not give one angle per tag.
+        ``rig`` is not a Rig, or a field of ``kw`` is out of its domain.
     """
     from rangekit.rig import Rig
 
@@ -332,7 +335,7 @@ def rig_config(
         raise InvalidParameterError(f"rig must be a rangekit.rig.Rig, got {type(rig).__name__}")
     where = name
     if rig.odometry.kind != "steps":
-        raise InvalidParameterError(
+        raise IncompatibleInputError(
             f"{where}: the particle filter moves on step events; the rig's odometry is "
             f"{rig.odometry.kind!r}, not 'steps'"
         )
@@ -341,17 +344,17 @@ def rig_config(
         given = np.isfinite(rig.tag_axis_rad)
         centre = np.flatnonzero(~given & (np.hypot(lever[:, 0], lever[:, 1]) == 0.0))
         if centre.size:
-            raise InvalidParameterError(
+            raise IncompatibleInputError(
                 f"{where}: tag {int(rig.tag_ids[centre[0]])} sits at the body centre and has "
                 "no axis_deg, so its axis cannot be taken from its lever arm; give axis_deg "
-                "in the rig or the sensor axes (--mounts)"
+                "in the rig or the sensor axes"
             )
         radial = np.arctan2(lever[:, 1], lever[:, 0])
         mounts = tuple(float(a) for a in np.where(given, rig.tag_axis_rad, radial))
     else:
         mounts = tuple(float(a) for a in mount_angles_rad)
         if len(mounts) != rig.n_tags:
-            raise InvalidParameterError(
+            raise IncompatibleInputError(
                 f"{where}: {len(mounts)} mount angle(s) for the rig's {rig.n_tags} tag(s)"
             )
     if kw.get("method") == "sir" and "step_sigma_m" not in kw:
@@ -457,12 +460,18 @@ def check_inputs(
     mounts_name: str = "mount_angles_rad",
     start_name: str = "start_xy",
 ) -> None:
-    """Check that the inputs fit each other before :func:`track_particles`: every sensor
+    """Check that the inputs fit each other, as :func:`track_particles` does first (it
+    calls this, the one place of these checks): in ``mode="ranging"`` every sensor
     index of the range log has a mount angle (a tag of the rig, ``rig_name``, when the
-    config came from :func:`rig_config`), and the start lies within the plan's bounds.
+    config came from :func:`rig_config`), and where the mode uses the plan
+    (``"model"``, ``"ranging"``) the start lies within its bounds.
 
-    The names are those of the inputs in the messages (``rangekit track particle``
-    passes its files and options).
+    Each input is valid on its own; together they do not fit, hence
+    :class:`~rangekit.errors.IncompatibleInputError` (exit code 5; the table in
+    ``docs/cli.md``): a malformed log or a value out of its domain is caught before,
+    by the readers and :class:`ParticleConfig`. The names are those of the inputs in
+    the messages (``rangekit track particle`` passes its files and options through
+    :func:`track_particles`' ``names``).
 
     Raises
     ------
@@ -480,7 +489,7 @@ def check_inputs(
     rangekit.errors.IncompatibleInputError: start_xy 5,1 is outside ... (x 0..4, y 0..3)
     """
     n = len(config.mount_angles_rad)
-    if ranges is not None and ranges.n_sensors > n:
+    if config.mode == "ranging" and ranges is not None and ranges.n_sensors > n:
         what = (
             f"the rig {rig_name} has {n} tag(s)"
             if rig_name is not None
@@ -490,7 +499,7 @@ def check_inputs(
             f"{ranges_name}: has readings of sensor {ranges.n_sensors - 1} but {what} "
             f"(sensor indices 0..{n - 1})"
         )
-    if plan is not None:
+    if config.mode != "imu" and plan is not None and plan.walls:
         xy0 = [float(v) for v in np.asarray(start_xy, dtype=np.float64).reshape(-1)]
         x0, y0, x1, y1 = plan.bounds
         if not (x0 <= xy0[0] <= x1 and y0 <= xy0[1] <= y1):
@@ -775,17 +784,12 @@ def _readings(steps: StepLog, ranges: RangeLog | None, n_mounts: int, cfg: Parti
     old at the step time, ``frac = 1`` (the particle's position after the step).
     ``"all"``: every reading since the previous step event, ``frac`` the fraction of the
     step done at the reading time (readings before the first step: those within one
-    median step interval of it).
+    median step interval of it). Every sensor has a mount (:func:`check_inputs`).
     """
     n = len(steps)
     empty = (np.zeros(0), np.zeros(0, np.int64), np.zeros(0))
     if ranges is None or len(ranges) == 0:
         return [empty] * n
-    if ranges.n_sensors > n_mounts:
-        raise InvalidParameterError(
-            f"the range log has sensor {ranges.n_sensors - 1} but only {n_mounts} "
-            "mount_angles_rad are configured"
-        )
     t_step = steps.t_s
     out = []
     if cfg.use_readings == "latest":
@@ -835,6 +839,7 @@ def track_particles(
     *,
     rng: RngLike = None,
     save_clouds: Sequence[int] = (),
+    names: Mapping[str, str | None] | None = None,
 ) -> ParticleTrack:
     """Track a walker on a floor plan from step events and range readings.
 
@@ -857,6 +862,9 @@ def track_particles(
     save_clouds : sequence of int, optional
         Numbers of steps after which to keep a copy of the cloud (e.g. ``(9, 21, 52)``
         for Figs 11-13).
+    names : mapping, optional
+        What to call the inputs in the messages of :func:`check_inputs` (its keywords
+        ``plan_name``, ``ranges_name``, ``rig_name``, ``mounts_name``, ``start_name``).
 
     Returns
     -------
@@ -865,8 +873,10 @@ def track_particles(
     Raises
     ------
     InvalidParameterError
-        On a bad configuration, a missing plan or range log for the mode, a start point
-        outside the plan, or a range log with more sensors than mounts.
+        On a bad configuration, or a missing plan or range log for the mode.
+    IncompatibleInputError
+        A start point outside the plan, or a range log with more sensors than mounts
+        (:func:`check_inputs`).
 
     Notes
     -----
@@ -948,12 +958,9 @@ def track_particles(
     start = np.asarray(start_xy, dtype=np.float64).reshape(-1)
     if start.size != 2 or not np.all(np.isfinite(start)):
         raise InvalidParameterError(f"start_xy={start_xy!r} must be a finite point (x, y)")
+    check_inputs(plan, ranges, start, cfg, **(names or {}))
     g = np.random.default_rng(rng)
     world = _World(plan, cfg, use_plan=cfg.mode != "imu")
-    if world.use_plan and not world.inside(start[None, :])[0]:
-        raise InvalidParameterError(
-            f"start_xy={start.tolist()} lies outside the floor plan (bounds {world.bounds})"
-        )
     save = {_validate.positive_int("save_clouds[]", s) for s in save_clouds}
     n_m = len(cfg.mount_angles_rad)
     if cfg.mode == "ranging":

@@ -259,3 +259,24 @@ def test_the_old_form_with_steps_gives_the_same_track(files, walk):
     assert a.stdout == b.stdout
     assert b.stderr.splitlines() == [*a.stderr.splitlines(), b.stderr.splitlines()[-1]]
     assert "deprecated" in b.stderr.splitlines()[-1]
+
+
+def test_inputs_that_do_not_fit_are_exit_5_with_the_librarys_message(files, walk):
+    """rangekit.localize.particle.check_inputs, run once inside track_particles, names
+    the command's files and options; the command adds nothing (one line, exit 5)."""
+    base = ["track", "particle", files["steps"], "--map", files["plan"]]
+    line = assert_error(run([*base, "--start", "100,1"]), 5)
+    x0, y0, x1, y1 = walk.plan.bounds
+    assert line == (
+        f"rangekit: error: --start 100,1 is outside the floor plan {files['plan']} "
+        f"(x {x0:g}..{x1:g}, y {y0:g}..{y1:g})"
+    )
+    line = assert_error(
+        run([*base, "--ranges", files["ranges"], "--start", _start(walk), "--mounts", "90"]), 5
+    )
+    assert line == (
+        f"rangekit: error: {files['ranges']}: has readings of sensor 1 but --mounts gives 1 "
+        "sensor(s) (sensor indices 0..0)"
+    )
+    # --mode imu does not use the plan: a start outside it runs (as in the library)
+    ok(run([*base, "--mode", "imu", "--start", "100,1"]))

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from rangekit import _raycast
-from rangekit.errors import InvalidParameterError
+from rangekit.errors import IncompatibleInputError, InvalidParameterError
 from rangekit.floorplan import FloorPlan
 from rangekit.io.steplog import RangeLog, StepLog
 from rangekit.localize import _particle_kernels as K
@@ -542,11 +542,12 @@ def test_bad_inputs_raise():
         track_particles(None, steps, None, (0, 0), ParticleConfig(mode="model"))
     with pytest.raises(InvalidParameterError, match="needs a range log"):
         track_particles(BOX, steps, None, (1, 1))
-    with pytest.raises(InvalidParameterError, match="outside the floor plan"):
+    # inputs that do not fit each other (check_inputs): exit code 5, not 2
+    with pytest.raises(IncompatibleInputError, match="outside the floor plan"):
         track_particles(BOX, steps, ranges, (20, 1))
     with pytest.raises(InvalidParameterError, match="start_xy"):
         track_particles(BOX, steps, ranges, (np.nan, 1))
-    with pytest.raises(InvalidParameterError, match="sensor 2"):
+    with pytest.raises(IncompatibleInputError, match="sensor 2"):
         track_particles(BOX, steps, RangeLog([0.5], [2], [1.0]), (1, 1))
     with pytest.raises(InvalidParameterError, match="steps must be a StepLog"):
         track_particles(BOX, [1.0], ranges, (1, 1))

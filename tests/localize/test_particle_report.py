@@ -7,7 +7,7 @@ import math
 
 import pytest
 
-from rangekit.errors import IncompatibleInputError
+from rangekit.errors import IncompatibleInputError, InvalidParameterError
 from rangekit.localize.particle import (
     TRACK_COLUMNS,
     ParticleConfig,
@@ -53,6 +53,57 @@ def test_check_inputs_names_the_sensor_and_the_start(walk):
     )
     # on the bounds is inside
     check_inputs(walk.plan, None, (x1, y1), ParticleConfig())
+
+
+def test_checks_apply_to_what_the_mode_uses(walk):
+    one = ParticleConfig(mount_angles_rad=(math.pi / 2,), mode="model")
+    check_inputs(walk.plan, walk.ranges, walk.start_m, one)  # model: the readings unused
+    check_inputs(walk.plan, walk.ranges, (100.0, 1.0), ParticleConfig(mode="imu"))  # no plan
+    with pytest.raises(IncompatibleInputError, match="outside"):
+        check_inputs(walk.plan, None, (100.0, 1.0), ParticleConfig(mode="model"))
+
+
+def test_track_particles_checks_once_with_the_callers_names(walk):
+    """The checks live in check_inputs; track_particles runs them, naming the inputs as
+    its caller asks (the command: its files and options), and raises the same class."""
+    one = ParticleConfig(mount_angles_rad=(math.pi / 2,))
+    names = {"ranges_name": "r.csv", "mounts_name": "--mounts", "start_name": "--start",
+             "plan_name": "plan.json"}  # fmt: skip
+    with pytest.raises(IncompatibleInputError) as e:
+        track_particles(walk.plan, walk.steps, walk.ranges, walk.start_m, one, names=names)
+    assert str(e.value) == (
+        "r.csv: has readings of sensor 1 but --mounts gives 1 sensor(s) (sensor indices 0..0)"
+    )
+    assert e.value.exit_code == 5
+    with pytest.raises(IncompatibleInputError) as e:
+        track_particles(walk.plan, walk.steps, None, (100.0, 1.0), ParticleConfig(mode="model"))
+    assert str(e.value).startswith("start_xy 100,1 is outside the floor plan (x ")
+    # imu mode does not use the plan: a start outside it is fine
+    trk = track_particles(walk.plan, walk.steps, None, (100.0, 1.0),
+                          ParticleConfig(mode="imu"), rng=0)  # fmt: skip
+    assert trk.xy_m.shape == (len(walk.steps), 2)
+
+
+def test_rig_that_does_not_fit_is_incompatible(tmp_path):
+    from rangekit.localize.particle import rig_config
+    from rangekit.rig import read_rig
+
+    def rig(levers, kind="steps"):
+        doc = {"format": "rangekit-rig", "version": 1, "units": "m",
+               "anchors": [{"id": 1, "x_m": 0.0, "y_m": 0.0}],
+               "body": {"tags": [{"id": i + 1, "x_m": x, "y_m": y}
+                                 for i, (x, y) in enumerate(levers)]},
+               "odometry": {"type": kind}}  # fmt: skip
+        (tmp_path / "rig.json").write_text(json.dumps(doc))
+        return read_rig(tmp_path / "rig.json")
+
+    for r, match in ((rig([(0.0, 0.0)]), "body centre"), (rig([(0.0, 0.1)], "none"), "'none'")):
+        with pytest.raises(IncompatibleInputError, match=match):
+            rig_config(r, name="rig.json")
+    with pytest.raises(IncompatibleInputError, match="2 mount angle"):
+        rig_config(rig([(0.0, 0.1)]), mount_angles_rad=(0.0, 1.0))
+    with pytest.raises(InvalidParameterError, match="n_particles"):  # a setting: exit 2
+        rig_config(rig([(0.0, 0.1)]), n_particles=0)
 
 
 def test_report_of_a_seeded_run(walk):
