@@ -550,12 +550,15 @@ def find_bursts(
     condition: bool = True,
 ) -> BurstCandidates:
     """Find and time every burst onset in ``x`` (no grouping into beeps)."""
+    clipped = clip_mask(x) if condition else None
     n_win, hop, _, _, frames = _candidates(
         x, fs=fs, beep=beep, win_s=win_s, hop_s=hop_s, threshold_db=threshold_db,
-        rise_db=rise_db, condition=condition,
+        rise_db=rise_db, condition=condition, clipped=clipped,
     )  # fmt: skip
     compiled = len(x) >= _edge_kernels.NUMBA_MIN_SAMPLES
-    cond = _conditioner(x, fs=fs, beep=beep, condition=condition, compiled=compiled)
+    cond = _conditioner(
+        x, fs=fs, beep=beep, condition=condition, compiled=compiled, clipped=clipped
+    )
     on, sg, snr = [], [], []
     last = -math.inf
     for m in frames:
@@ -589,16 +592,18 @@ def _candidates(
     threshold_db: float,
     rise_db: float,
     condition: bool = True,
+    clipped: np.ndarray | None = None,
 ) -> tuple[int, int, np.ndarray, np.ndarray, np.ndarray]:
     """``(n_win, hop, band energy, its local floor, change-point frames)`` of ``x``.
 
     With ``condition``, clicks (:func:`click_mask`) are bridged before the band energy is
     taken: a click's broadband energy would raise a change point of its own whose frames
     run into a beep starting within a window after it, which then raises none.
+    ``clipped``: ``clip_mask(x)`` when the caller has it (computed here otherwise).
     """
     n_win, hop = _stft_params(fs, win_s, hop_s)
     if condition:
-        clicks = click_mask(clip_mask(x), fs=fs)
+        clicks = click_mask(clip_mask(x) if clipped is None else clipped, fs=fs)
         if clicks.any():
             # bridged by a straight line between the samples around them: a click goes,
             # a slow waveform that touched the rail there stays as it was (zeroing it
@@ -663,11 +668,18 @@ def _floor(e: np.ndarray, *, fs: float, hop: int) -> np.ndarray:
 
 
 def _conditioner(
-    x: np.ndarray, *, fs: float, beep: Beep, condition: bool, compiled: bool = False
+    x: np.ndarray,
+    *,
+    fs: float,
+    beep: Beep,
+    condition: bool,
+    compiled: bool = False,
+    clipped: np.ndarray | None = None,
 ) -> _Conditioner:
+    """The conditioning of ``x`` (``clipped``: ``clip_mask(x)`` when the caller has it)."""
     if not condition:
         return _Conditioner(x, None, None)
-    clipped = clip_mask(x)
+    clipped = clip_mask(x) if clipped is None else clipped
     taps = beep_taps(beep, fs)
     return _Conditioner(x, taps, clipped if clipped.any() else None, compiled)
 
@@ -1035,9 +1047,11 @@ def detect_changepoint(
     min_bursts = V.positive_int("min_bursts", min_bursts)
     if min_bursts > k_b:
         raise V.InvalidParameterError(f"min_bursts={min_bursts} exceeds n_bursts={k_b}")
+    # One clip mask for the clicks bridged before the band energy and the conditioning.
+    clipped = clip_mask(x) if condition else None
     n_win, hop, e, floor, frames = _candidates(
         x, fs=fs, beep=beep, win_s=win_s, hop_s=hop_s, threshold_db=threshold_db,
-        rise_db=rise_db, condition=condition,
+        rise_db=rise_db, condition=condition, clipped=clipped,
     )  # fmt: skip
     spacing = beep.spacing_s * fs
     # Long recordings: numba is imported by band_energy already; the edge fits' kernels
@@ -1069,7 +1083,9 @@ def detect_changepoint(
         for a, n_rise in starts:
             if n_rise >= min(2, min_bursts) and all(abs(a - b) > hop for b in anchors[-8:]):
                 anchors.append(a)
-    cond = _conditioner(x, fs=fs, beep=beep, condition=condition, compiled=compiled)
+    cond = _conditioner(
+        x, fs=fs, beep=beep, condition=condition, compiled=compiled, clipped=clipped
+    )
     live = floor[floor > 1e-12 * float(floor.max())] if len(floor) and floor.max() > 0 else floor
     quiet = float(percentile(live, 10.0)) if len(live) else 0.0
     oob = _out_of_band(x, cond) if condition else False
