@@ -65,6 +65,7 @@ import numpy as np
 from rangekit._jsondoc import check_header, json_number
 from rangekit.errors import InputFileError, InvalidParameterError, LogFormatError
 from rangekit.io.csvlog import Column, read_table, read_text, write_table
+from rangekit.io.results import format_value
 
 __all__ = [
     "BEACON_FORMAT",
@@ -284,7 +285,8 @@ def read_duhl_log(source: str | os.PathLike | IO[str], *, name: str | None = Non
             v = tab[c][i]
             if (c == "tx" and v >= 0) or (c != "tx" and not math.isnan(v)):
                 raise LogFormatError(
-                    f"{where}, column {c!r}: a {k} row leaves this cell empty (got {v!r})"
+                    f"{where}, column {c!r}: a {k} row leaves this cell empty "
+                    f"(got {format_value(v)})"
                 )
         if k == "odometry":
             t = float(tab["t_s"][i])

@@ -138,14 +138,18 @@ def test_empty_log_is_legal():
         (
             3,
             lambda s: s.replace("0.29,,", "0.29,1.0,"),
-            r"row 3, column 'd1_m': a odometry row leaves",
+            r"row 3, column 'd1_m': a odometry row leaves this cell empty \(got 1\)$",
         ),
         (
             3,
             lambda s: s.replace("0.01,odometry,,", "0.01,odometry,3,"),
-            r"row 3, column 'tx': a od",
+            r"row 3, column 'tx': a odometry row leaves this cell empty \(got 3\)$",
         ),
-        (4, lambda s: s.replace("4,,,", "4,0.3,,"), r"row 4, column 'v_right_mps': a distance row"),
+        (
+            4,
+            lambda s: s.replace("4,,,", "4,1e9,,"),
+            r"row 4, column 'v_right_mps': a distance row leaves this cell empty \(got 1e\+09\)$",
+        ),
         (4, lambda s: s + ",9", r"row 4: 9 cells, the header has 8"),
         (
             5,
