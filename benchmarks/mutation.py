@@ -204,6 +204,38 @@ EQUIVALENT: dict[str, dict[tuple, str]] = {
         ("while b - a > 1e-4:", "> -> >="): "the interval, 2 g^k wide, is never exactly 1e-4",
         ("if f1 >= f2:", ">= -> >"):
             "at a tie the extremum lies between x1 and x2, which either branch keeps",
+        ("pk = np.flatnonzero((mid >= r[:-2]) & (mid > r[2:])) + 1", "> -> >="):
+            "a plateau counted twice: lag 0 of a self response is a strict maximum, so the "
+            "largest side value v[1] is the same",
+        ("lo, hi = max(1, j - reach), min(len(c) - 1, j + reach + 1)", "- -> +", 1):
+            "the slice c.real[lo - 1 : hi + 1] stops at len(c) either way",
+        ("t = a + refine_extremum(np.ascontiguousarray(c.real[a : p + SINC_HALF + 3]), p - a)",
+         "3 -> 4"): "a sample no tap reads: [p - 1, p + 1] reads up to p + 17 < p + 19",
+    },
+    "rangekit/detect/pathfit.py": {
+        ("if a.ndim and axis in (-1, a.ndim - 1) and a.shape[-1] <= n and _POCKET is not None:",
+         "-x -> x", 0): "scipy.fft.ifft instead: the same pocketfft call, bit-identical",
+        ("if a.ndim and axis in (-1, a.ndim - 1) and a.shape[-1] <= n and _POCKET is not None:",
+         "1 -> 2", 1): "scipy.fft.ifft instead: the same pocketfft call, bit-identical",
+        ("if a.ndim and axis in (-1, a.ndim - 1) and a.shape[-1] <= n and _POCKET is not None:",
+         "is not -> is"): "scipy.fft.ifft instead: the same pocketfft call, bit-identical",
+        ("return 1 << max(4, int(math.ceil(math.log2(max(n, 1)))))", "1 -> 2", 1):
+            "the grid size n is always above 2",
+        ('return USE_KERNEL and "numba" in sys.modules and x.dtype == np.float64 and '
+         "x.flags.c_contiguous", "== -> !="):
+            "the numpy reference instead of the compiled step: equal to 1e-15 "
+            "(test_pathfit_kernels.py)",
+        ("if nb > 2:", "> -> >="): "at nb == 2 the theta block has no columns: an empty assignment",
+        ("for attempt in range(2):", "2 -> 3"): "the look-earlier branch needs attempt == 0",
+        ("j_max = max(1, len(seg) - len(model.drive) // 2)", "1 -> 2"):
+            "fit_arrival refuses a segment shorter than the drive: the difference is >= 50",
+        ("pv = np.where(ok, 2.0 * num / np.maximum(den, 1e-300)[:, None], -1.0)", "1.0 -> 2.0"):
+            "valid pairs explain a non-negative energy and win; the fill value is not used",
+        ("if math.sqrt(max(p, 0.0)) / sigma < k_add:", "< -> <="):
+            "a tie of a float statistic with k_add, never met",
+        ("misfit = (st.cost - dof * sigma**2) / sig_energy if sig_energy > 0 else 0.0",
+         "> -> >="): "a fit above k_add noise scales has a nonzero signal energy",
+        ("mean = theta[0]", "0 -> 1"): "overwritten by the loop's first pass before any use",
     },
     "rangekit/detect/stagger.py": {
         ("if len(self._cache) > 64:", "64 -> 65"): "a cache's size: the same spectra",
