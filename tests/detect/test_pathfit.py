@@ -591,3 +591,15 @@ def test_gain_is_the_onsets_derivative_along_the_profile(model):
     d_f = (onset(12.0, 40020.0)[0] - onset(12.0, 39980.0)[0]) / 40.0
     assert d_q == pytest.approx(gain[0], rel=1e-3)
     assert d_f == pytest.approx(gain[1], rel=1e-3)
+
+
+def test_pooling_keeps_the_fits_within_4_sigma():
+    """Nine fits at Q 10 and one 4.5 sigma off in log Q (Mahalanobis distance to the
+    pooled value: 4.05 with it, 4.5 without): left out of the mean, which is the nine's;
+    one 3 sigma off instead is kept (the mean moves to 0.3 sigma)."""
+    info = np.diag([100.0, 1e-4])  # sd 0.1 in log Q
+    nine = [_fake([math.log(10.0), 40000.0], info) for _ in range(9)]
+    out, pooled = pool_fits([*nine, _fake([math.log(10.0) + 0.45, 40000.0], info)])
+    assert pooled and out[0].q == pytest.approx(10.0, rel=1e-12)
+    out, pooled = pool_fits([*nine, _fake([math.log(10.0) + 0.3, 40000.0], info)])
+    assert pooled and out[0].q == pytest.approx(10.0 * math.exp(0.03), rel=1e-9)
