@@ -236,6 +236,10 @@ EQUIVALENT: dict[str, dict[tuple, str]] = {
         ("misfit = (st.cost - dof * sigma**2) / sig_energy if sig_energy > 0 else 0.0",
          "> -> >="): "a fit above k_add noise scales has a nonzero signal energy",
         ("mean = theta[0]", "0 -> 1"): "overwritten by the loop's first pass before any use",
+        ("half = np.flatnonzero(r[: model.n_fft // 2] < 0.5 * r[0])", "< -> <="):
+            "an envelope exactly half its peak at an integer lag, never met",
+        ("if u_min < 0.25 * model.pre and n0 > 0 and attempt == 0 and start is None:",
+         "> -> >="): "at n0 == 0 the second pass reads the same segment (n0 stays 0): the same fit",
     },
     "rangekit/detect/stagger.py": {
         ("if len(self._cache) > 64:", "64 -> 65"): "a cache's size: the same spectra",

@@ -603,3 +603,27 @@ def test_pooling_keeps_the_fits_within_4_sigma():
     assert pooled and out[0].q == pytest.approx(10.0, rel=1e-12)
     out, pooled = pool_fits([*nine, _fake([math.log(10.0) + 0.3, 40000.0], info)])
     assert pooled and out[0].q == pytest.approx(10.0 * math.exp(0.03), rel=1e-9)
+
+
+@pytest.mark.parametrize("hold", [False, True])
+def test_the_fit_does_not_depend_on_the_drives_scale(hold):
+    """Models built from the drive in units 1e-4, 1 and 1e4 apart fit the same noisy
+    arrival (a reflection 1.5x the direct path 0.05 ms later, resolved by the two-path
+    scan) alike: the same onsets, sigma and Q, the amplitudes in inverse units."""
+    t0 = 1200.25
+    rng = np.random.default_rng(2)
+    x = _received(12.0, [t0, t0 + 0.05e-3 * FS], [1.0, 1.5])
+    x = x + 1e-3 * rng.standard_normal(len(x))
+    d = burst_waveform(CodedBurst(fs=FS))
+    fits = {
+        s: fit_arrival(x, t0, model=ResonatorModel(s * d, fs=FS), sigma=1e-3, hold=hold, q0=12.0)
+        for s in (1e-4, 1.0, 1e4)
+    }
+    ref = fits[1.0]
+    assert ref.n_paths == 2 and abs(ref.onset - t0) < 0.1  # measured 0.048
+    for s, f in fits.items():
+        assert f.n_paths == 2, s
+        assert f.onsets == pytest.approx(ref.onsets, rel=1e-9, abs=1e-6)
+        assert f.sigma == pytest.approx(ref.sigma, rel=1e-6)
+        assert f.q == pytest.approx(ref.q, rel=1e-6)
+        assert s * f.amplitudes == pytest.approx(ref.amplitudes, rel=1e-6)
