@@ -240,6 +240,16 @@ EQUIVALENT: dict[str, dict[tuple, str]] = {
             "an envelope exactly half its peak at an integer lag, never met",
         ("if u_min < 0.25 * model.pre and n0 > 0 and attempt == 0 and start is None:",
          "> -> >="): "at n0 == 0 the second pass reads the same segment (n0 stays 0): the same fit",
+        ("if inside[i] and u_abs[i] < u_abs[strongest] and snr[i] >= k_noise:", "< -> <="):
+            "the onsets are distinct: only the strongest itself is added, which is the default",
+        ("if inside[i] and u_abs[i] < u_abs[strongest] and snr[i] >= k_noise:", ">= -> >"):
+            "a tie of a path's SNR with k_noise, never met",
+        ("small = np.all(np.abs(accepted.u - st.u) < 1e-4) and np.all(", "< -> <="):
+            "an onset step of exactly 1e-4 samples, never met",
+        ("st.cost - two.cost > k_add**2 * sigma**2", "> -> >="):
+            "a tie of the two-path gain with k_add^2 noise variances, never met",
+        ("np.abs(theta_hat - theta_lin) > 3.0 * model.theta_step()", "> -> >="):
+            "a Newton step of exactly 3 step limits, never met",
     },
     "rangekit/detect/stagger.py": {
         ("if len(self._cache) > 64:", "64 -> 65"): "a cache's size: the same spectra",
