@@ -116,10 +116,11 @@ PRE_LAST_DB = 8.0
 #: in every window, over its mean in the ``PRE_NEAR_S`` before, at least
 #: ``PRE_TONE_RATIO`` flags ``ambiguous_first_path``. 4: in white noise the smallest of
 #: four bursts' ratios is exponential with mean 1/4 (above 4 with probability e^-16 per
-#: window); on 427 correct arrivals of the pyroomacoustics corpus (seeds 1 impaired and 3
-#: clean, 60 exchanges each) the largest was 3.05; a direct path 20 dB under a reflection
-#: 80 samples later gives 3.4-9 at noise 0.05 and 36-240 at 0.01-0.02.
-PRE_TONE_S = (64 / 44100, 128 / 44100)
+#: window); on 577 correct arrivals of the pyroomacoustics corpus (seeds 1 and 2
+#: impaired, 3 clean, 60 exchanges each) the largest was 3.53 (32 samples), 3.05 (64 and
+#: 128); a direct path 20 dB under a reflection 80 samples later gives 3.4-9 at noise
+#: 0.05 and 36-240 at 0.01-0.02, one 40 samples later 13 (median, 32 samples) at 0.02.
+PRE_TONE_S = (32 / 44100, 64 / 44100, 128 / 44100)
 PRE_TONE_RATIO = 4.0
 #: A click (:func:`click_mask`): a run of clipped samples at most ``CLICK_MAX_S`` long
 #: with no other clipped sample within ``CLICK_GAP_S`` (8 and 32 samples at 44.1 kHz).
@@ -1304,7 +1305,7 @@ def _precursor_flags(arr: Arrivals, cond: _Conditioner, *, fs: float, beep: Beep
     ``PRE_TONE_RATIO`` over its level before, just before every burst
     (:func:`precursor_ratio`, windows of ``PRE_TONE_S``): sound of the beep arrived
     before the chosen onset, within a few windows (a direct path too weak to time, 20
-    dB under a reflection 1-3 ms later, or a pulse). Tested on beeps of three bursts or
+    dB under a reflection 0.7-3 ms later, or a pulse). Tested on beeps of three bursts or
     more whose every burst's window lies in the recording (one burst alone is
     exponential: e^-4 = 2 % of noise passes)."""
     if beep.n_bursts < 3 or len(arr) == 0:
