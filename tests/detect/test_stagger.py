@@ -143,6 +143,38 @@ def test_receivers_that_disagree_on_the_shape_are_refitted():
     ]
 
 
+def test_a_receiver_that_chose_the_resonator_is_refitted_at_the_consensus_shape():
+    """Two receivers of a transmitter agree on a stagger shape and a third chose the
+    resonator for it (no shape): the third hears the same transducer and is refitted
+    with the stagger model held at the two's shape (their information-weighted mean),
+    when that shape is stagger-tuned. A receiver of another transmitter only, or with
+    the resonator where no two agree, is left alone."""
+    from rangekit.detect.fitted import ChannelFit, check_shapes
+
+    cov = np.diag([1e-4, 1.0, 4e-4, 4e-4])
+
+    def fit(shapes, groups=(0,)):
+        sh = {k: (np.array([-3.0, 40000.0, *v]), cov) for k, v in shapes.items()}
+        return ChannelFit(None, np.array([], dtype=object), list(groups), sh)
+
+    res = fit({})  # chose the resonator for transmitter 0
+    out = check_shapes([fit({0: [-1.0, 0.0]}), res, fit({0: [-1.04, 0.02]})])
+    assert out[0] == {} and out[2] == {}
+    fam, theta = out[1][0]
+    assert fam == "stagger" and theta[2:] == pytest.approx([-1.02, 0.01])
+    # a consensus split in damping (+0.4: two receivers' fits mimicking a room's
+    # reflections) is not a transducer's shape to hold the third at (HOLD_SPLIT)
+    assert check_shapes([fit({0: [0.4, 0.0]}), res, fit({0: [0.42, 0.02]})]) == [{}] * 3
+    # the resonator receiver heard transmitter 1 only: nothing to hold it at
+    other = fit({}, groups=(1,))
+    assert check_shapes([fit({0: [-1.0, 0.0]}), other, fit({0: [-1.04, 0.02]})]) == [{}] * 3
+    # one stagger receiver is no consensus
+    assert check_shapes([fit({0: [-1.0, 0.0]}), res]) == [{}, {}]
+    # two that disagree: both back to the resonator, the third keeps its own
+    out = check_shapes([fit({0: [-1.0, 0.0]}), res, fit({0: [-2.0, -0.3]})])
+    assert out == [{0: "resonator"}, {}, {0: "resonator"}]
+
+
 def test_a_split_beyond_maximally_flat_adds_the_model_order_term():
     """``order_terms``: pooled over the receivers of a transmitter, a split ``Re nu / a^2``
     at the maximally flat -1 adds nothing; one 3 (scaled) sigma beyond it half the term,
