@@ -129,15 +129,18 @@ def calibrate_cmd(
 
     from rangekit_cli._options import load_template
 
+    from rangekit.io.notes import calibrate_detail
     from rangekit.io.results import format_calibration
     from rangekit.ranging.calibration import calibrate_recordings
     from rangekit.ranging.config import Medium
 
     probe = load_template(template)
     recs = [parse_recording(r, distance) for r in recordings]
-    c = Medium(temp_c=temp_c, speed_m_s=speed).c
-    sig = f"template '{template}'" if probe is not None else f"detector {detector}"
-    detail(f"rangekit: calibrate: {scheme}, {sig}, {len(recs)} recordings, c = {c:.2f} m/s")
+    medium = Medium(temp_c=temp_c, speed_m_s=speed)
+    detail("rangekit: calibrate: " + calibrate_detail(
+        scheme, n_recordings=len(recs), medium=medium, detector=detector,
+        template=template if probe is not None else None,
+    ))  # fmt: skip
     if scheme == "beepbeep":
         refuse_ultrasonic_options(kw)
         if probe is not None:
@@ -152,7 +155,7 @@ def calibrate_cmd(
         args = {"setup": setup}
     with progress(len(recs), "calibrate", unit="files") as bar:
         cal = calibrate_recordings(
-            recs, scheme=scheme, speed_m_s=c, probe=probe, fit_speed=fit_speed,
+            recs, scheme=scheme, speed_m_s=medium.c, probe=probe, fit_speed=fit_speed,
             tolerance_m=tolerance, progress=bar.report, **args,
         )  # fmt: skip
     cal.write(output)

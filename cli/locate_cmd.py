@@ -130,6 +130,7 @@ def locate_cmd(beacons, ranges, sigma, distances, tx_items, method, d_th, r_r, f
     """
     from rangekit.io.duhllog import read_beacons
     from rangekit.io.guard import is_stdin
+    from rangekit.io.notes import locate_detail
     from rangekit.localize.locate import locate_pose, read_distance_table, read_range_rows
 
     given = [
@@ -159,11 +160,7 @@ def locate_cmd(beacons, ranges, sigma, distances, tx_items, method, d_th, r_r, f
     else:
         ids, d = _parse_tx(tx_items)
         source = "--tx"
-    detail(
-        f"rangekit: locate: {len(ids)} transmitters ({', '.join(map(str, ids))}) from "
-        f"{source}, method {method}, distance sigma "
-        f"{f'{sigma:g} m' if sigma is not None else 'per range' if sig is not None else 'none'}"
-    )
+    detail("rangekit: locate: " + locate_detail(ids, source=source, method=method, sigma_m=sig))
     pose = locate_pose(
         read_beacons(beacons), ids, d, sigma_m=sig, r_R=r_r, method=method, d_th=d_th,
         source=source, beacon_file=str(beacons),

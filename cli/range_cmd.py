@@ -23,7 +23,6 @@ from rangekit_cli._options import (
 from rangekit_cli.range_options import (
     check_series_options,
     check_template_options,
-    describe,
     range_options,
 )
 from rangekit_cli.range_setup import apply_setup
@@ -102,7 +101,6 @@ def range_cmd(
         self_distance, temp_c = apply_setup(files, scheme, self_distance, temp_c, speed, cal, kw)
     else:
         detail("rangekit: setup: not read (--no-setup)")
-    describe(scheme, detector, template, calibration, self_distance, temp_c, speed)
     check_template_options(scheme=scheme, series=series, template=template, calibration=cal)
     from rangekit.ranging.config import Medium, SeriesOptions
 
@@ -114,7 +112,18 @@ def range_cmd(
         job.update(_two_way(self_distance, clock_ppm, detector, clock_rate, cal, probe, kw))
     else:
         job["ultrasonic"] = _ultrasonic(files, scheme, series, probe, kw)
+    _describe(job, template)
     _run(files, job, fmt, output)
+
+
+def _describe(job: dict, template: str | None) -> None:
+    """--verbose: what the run uses, as the library says it (rangekit.io.notes.range_detail)."""
+    from rangekit.io.notes import range_detail
+
+    detail("rangekit: range: " + range_detail(
+        job["scheme"], medium=job["medium"], detector=job.get("detector"), template=template,
+        calibration=job["calibration_file"], setup=job.get("setup"),
+    ))  # fmt: skip
 
 
 def _two_way(self_distance, clock_ppm, detector, clock_rate, cal, probe, kw) -> dict:

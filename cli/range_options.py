@@ -15,10 +15,8 @@ from rangekit_cli._options import (
     calibration_option,
     clock_ppm_option,
     debug_option,
-    detail,
     detector_option,
     format_option,
-    is_verbose,
     number_option,
     output_option,
     self_distance_option,
@@ -187,20 +185,3 @@ def check_template_options(*, scheme, series, template, calibration) -> None:
 def _source_is_commandline(name: str) -> bool:
     src = click.get_current_context().get_parameter_source(name)
     return src == click.core.ParameterSource.COMMANDLINE
-
-
-def describe(scheme, detector, template, calibration, self_distance, temp_c, speed) -> None:
-    """--verbose: one stderr line with what the run uses."""
-    if not is_verbose():
-        return
-    what = f"template '{template}'" if template is not None else f"detector {detector}"
-    if scheme != "beepbeep" and template is None:
-        what = "coded burst (--code)"
-    air = f"speed of sound {speed:g} m/s" if speed is not None else f"temperature {temp_c:g} C"
-    cal = f", calibration '{calibration}'" if calibration is not None else ""
-    if self_distance is None:  # the library's default (TwoWaySetup)
-        from rangekit.ranging.config import TwoWaySetup
-
-        self_distance = f"{TwoWaySetup().self_distance_m:g}"
-    sd = f", self-distance {self_distance}" if scheme == "beepbeep" else ""
-    detail(f"rangekit: range: scheme {scheme}, {what}, {air}{sd}{cal}")

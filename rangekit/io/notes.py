@@ -5,6 +5,11 @@ numbers a person checks at a glance. The lines are built here from the library's
 (the signal designed, the :class:`~rangekit.sim.scenarios.Synthesis`, the figure drawn),
 so that the command only prints them and a run from Python can say the same.
 
+With ``--verbose``, ``range``, ``calibrate`` and ``locate`` first say what the run uses
+(:func:`range_detail`, :func:`calibrate_detail`, :func:`locate_detail`), built here from the
+job's configuration objects (:class:`~rangekit.physics.Medium`,
+:class:`~rangekit.ranging.config.TwoWaySetup`) in the same way.
+
 The numbers, the same in every note:
 
 * frequencies and sample rates in Hz with up to six significant digits (``16000 Hz``,
@@ -15,7 +20,10 @@ The numbers, the same in every note:
   to 1 mm (it reports whole centimetres); a distance ranged from a recording in m to
   0.1 mm;
 * agreement with the truth as a median absolute error in mm to 0.1 mm and a whole
-  percentage.
+  percentage;
+* what a run uses (temperature, speed of sound, self-distances, a distance sigma) by
+  :func:`~rangekit.io.results.format_value`, except the speed of sound a calibration
+  fits with, to 0.01 m/s (``c = 343.29 m/s``).
 
 Examples
 --------
@@ -30,14 +38,19 @@ import math
 import os
 from pathlib import Path
 
+import numpy as np
+
 from rangekit.errors import InvalidParameterError
 from rangekit.io.results import format_value
 
 __all__ = [
     "beep_note",
     "burst_note",
+    "calibrate_detail",
     "cdf_note",
+    "locate_detail",
     "matched_note",
+    "range_detail",
     "ranges_note",
     "spectrogram_note",
     "sweep_note",
@@ -198,3 +211,117 @@ def cdf_note(output: str | os.PathLike, batch) -> str:
     :class:`~rangekit.plot.inputs.BatchErrors`)."""
     used = batch.n_rows - batch.n_skipped
     return wrote(output, f"{len(batch.errors_m)} curve(s), {used} rows, {batch.n_skipped} skipped")
+
+
+# ------------------------------------------------------------------- what a run uses
+
+
+def _signal_text(scheme: str, detector: str | None, template: str | None) -> str:
+    """What is detected: the template named, the ultrasonic schemes' coded burst, or the
+    beep's detector."""
+    if template is not None:
+        return f"template '{template}'"
+    if scheme != "beepbeep":
+        return "coded burst (--code)"
+    return f"detector {detector}"
+
+
+def _air_text(medium) -> str:
+    """The :class:`~rangekit.physics.Medium` as given: its speed of sound, or its
+    temperature."""
+    if medium.speed_m_s is not None:
+        return f"speed of sound {format_value(medium.speed_m_s)} m/s"
+    return f"temperature {format_value(medium.temp_c)} C"
+
+
+def range_detail(
+    scheme: str,
+    *,
+    medium,
+    detector: str | None = None,
+    template: str | None = None,
+    calibration: str | None = None,
+    setup=None,
+) -> str:
+    """What ``rangekit range --verbose`` says the run uses, after ``rangekit: range: ``.
+
+    Parameters
+    ----------
+    scheme : {"beepbeep", "oneway", "echo"}
+    medium : rangekit.physics.Medium
+        The air of the job.
+    detector : str, optional
+        The beep's detector (two-way without a template).
+    template, calibration : str, optional
+        The names of the template and calibration files given.
+    setup : rangekit.ranging.config.TwoWaySetup, optional
+        The two-way devices (None: ``TwoWaySetup()``, the library's default); its
+        self-distances are shown for ``beepbeep`` only.
+
+    Examples
+    --------
+    >>> from rangekit.physics import Medium
+    >>> from rangekit.ranging.config import TwoWaySetup
+    >>> range_detail("beepbeep", medium=Medium(), detector="changepoint",
+    ...              setup=TwoWaySetup(self_distance_m=(0.1, 0.12)))
+    'scheme beepbeep, detector changepoint, temperature 20 C, self-distance 0.1,0.12'
+    >>> range_detail("oneway", medium=Medium(speed_m_s=343.5), calibration="ow.json")
+    "scheme oneway, coded burst (--code), speed of sound 343.5 m/s, calibration 'ow.json'"
+    """
+    text = f"scheme {scheme}, {_signal_text(scheme, detector, template)}, {_air_text(medium)}"
+    if scheme == "beepbeep":
+        if setup is None:
+            from rangekit.ranging.config import TwoWaySetup
+
+            setup = TwoWaySetup()
+        text += f", self-distance {format_value(setup.self_distance_m)}"
+    if calibration is not None:
+        text += f", calibration '{os.fspath(calibration)}'"
+    return text
+
+
+def calibrate_detail(
+    scheme: str,
+    *,
+    n_recordings: int,
+    medium,
+    detector: str | None = None,
+    template: str | None = None,
+) -> str:
+    """What ``rangekit calibrate --verbose`` says the fit uses, after
+    ``rangekit: calibrate: ``: the scheme, the signal, how many recordings and the speed
+    of sound the offset is fitted with (:attr:`Medium.c <rangekit.physics.Medium>`, to
+    0.01 m/s).
+
+    Examples
+    --------
+    >>> from rangekit.physics import Medium
+    >>> calibrate_detail("beepbeep", n_recordings=4, medium=Medium(), template="sweep.wav")
+    "beepbeep, template 'sweep.wav', 4 recordings, c = 343.29 m/s"
+    """
+    sig = f"template '{template}'" if template is not None else f"detector {detector}"
+    return f"{scheme}, {sig}, {n_recordings} recordings, c = {medium.c:.2f} m/s"
+
+
+def locate_detail(ids, *, source: str, method: str, sigma_m=None) -> str:
+    """What ``rangekit locate --verbose`` says the solve uses, after ``rangekit: locate: ``:
+    the transmitters and where their distances came from, the method and the distances'
+    sigma (one number in m, ``per range`` for an array of them, ``none``).
+
+    Examples
+    --------
+    >>> locate_detail([0, 2], source="--tx", method="hybrid", sigma_m=0.002)
+    '2 transmitters (0, 2) from --tx, method hybrid, distance sigma 0.002 m'
+    >>> locate_detail([1, 2, 3], source="d.csv", method="direct")
+    '3 transmitters (1, 2, 3) from d.csv, method direct, distance sigma none'
+    """
+    if sigma_m is None:
+        sigma = "none"
+    elif np.ndim(sigma_m) == 0:
+        sigma = f"{format_value(float(sigma_m))} m"
+    else:
+        sigma = "per range"
+    return (
+        f"{len(ids)} transmitters ({', '.join(map(str, ids))}) from {source}, method "
+        f"{method}, distance sigma {sigma}"
+    )

@@ -82,3 +82,64 @@ def test_plot_notes(tmp_path):
     r = ok(run(["plot", "cdf", results, "--by", "scheme", "-o", png]))
     assert _note(r) == notes.cdf_note(png, jobs.cdf_figure(results, png, by="scheme"))
     assert _note(r) == f"wrote {png} (2 curve(s), 2 rows, 1 skipped)"
+
+
+def _first(r) -> str:
+    """The first stderr line of a --verbose run: what the run uses."""
+    return r.stderr.splitlines()[0]
+
+
+def test_range_verbose_line_is_the_librarys(tmp_path):
+    from rangekit.ranging.config import TwoWaySetup
+
+    args = ["range", WAV, "-v", "--no-setup", "--self-distance", "0.1,0.12", "--temperature", 25]
+    r = ok(run(args))
+    line = notes.range_detail("beepbeep", medium=Medium(temp_c=25.0), detector="changepoint",
+                              setup=TwoWaySetup(self_distance_m=(0.1, 0.12)))  # fmt: skip
+    assert r.stderr.splitlines()[1] == "rangekit: range: " + line
+    r = ok(run(["range", WAV, "-v", "--no-setup", "--speed-of-sound", 340]))
+    line = notes.range_detail("beepbeep", medium=Medium(speed_m_s=340.0), detector="changepoint")
+    assert r.stderr.splitlines()[1] == "rangekit: range: " + line
+    # the self-distance a sidecar gave, as the library holds it
+    x = tmp_path / "x.wav"
+    ok(run(["synth", "beepbeep", "--distance", 2, "--seed", 1, "-o", x]))
+    r = ok(run(["range", x, "-v"]))
+    sd = TwoWaySetup(self_distance_m=(0.1, 0.1))
+    line = notes.range_detail("beepbeep", medium=Medium(), detector="changepoint", setup=sd)
+    assert _first(r) == "rangekit: range: " + line
+
+
+def test_range_refused_before_it_runs_says_no_verbose_line():
+    """The line says what a run uses: a run refused before it starts has none."""
+    r = run(["range", WAV, "-v", "--no-setup", "--self-distance", "abc"])
+    assert r.exit_code == 2
+    assert r.stderr == (
+        "rangekit: setup: not read (--no-setup)\n"
+        "rangekit: error: Invalid value for --self-distance: 'abc' is not a comma-separated "
+        "list of numbers (see 'rangekit range --help')\n"
+    )
+
+
+def test_calibrate_verbose_line_is_the_librarys(tmp_path):
+    r = ok(run(["calibrate", "-v", "--distance", 2.5, WAV, WAV, WAV, "--temperature", 30,
+                "-o", tmp_path / "c.json"]))  # fmt: skip
+    line = notes.calibrate_detail(
+        "beepbeep", n_recordings=3, medium=Medium(temp_c=30.0), detector="changepoint"
+    )
+    assert _first(r) == "rangekit: calibrate: " + line
+    assert line.endswith("c = 349.10 m/s")
+
+
+def test_locate_verbose_line_is_the_librarys(tmp_path):
+    ok(run(["synth", "oneway", "--seed", 1, "-o", tmp_path / "ow.wav"]))
+    beacons = tmp_path / "ow.beacons.json"
+    tx = ["--tx", "0:2.11,2.05,2.20", "--tx", "2:2.42,2.37,2.51"]
+    r = ok(run(["locate", "--beacons", beacons, *tx, "--sigma", 0.002, "-v"]))
+    line = notes.locate_detail([0, 2], source="--tx", method="hybrid", sigma_m=0.002)
+    assert _first(r) == "rangekit: locate: " + line
+    d = tmp_path / "d.csv"
+    d.write_text("tx,d1_m,d2_m,d3_m\n0,2.11,2.05,2.20\n1,2.42,2.37,2.51\n")
+    r = ok(run(["locate", "--beacons", beacons, "--distances", d, "--method", "direct", "-v"]))
+    assert _first(r) == "rangekit: locate: " + notes.locate_detail(
+        [0, 1], source=str(d), method="direct"
+    )

@@ -133,3 +133,73 @@ def test_ranges_note_against_the_truth(tmp_path):
         "wrote r.png (1 series, 3 ranges; against the truth: median |error| 1.0 mm, "
         "67 % within 2 sigma)"
     )
+
+
+# ------------------------------------------------- --verbose: what a run uses (range, ...)
+# Strings from real runs of the commands before the lines moved out of cli/.
+
+
+def test_range_detail():
+    from rangekit.physics import Medium
+    from rangekit.ranging.config import TwoWaySetup
+
+    sd = TwoWaySetup(self_distance_m=(0.1, 0.1))
+    assert notes.range_detail("beepbeep", medium=Medium(), detector="changepoint", setup=sd) == (
+        "scheme beepbeep, detector changepoint, temperature 20 C, self-distance 0.1,0.1"
+    )
+    # no setup: the library's default self-distance (TwoWaySetup(): 0 m); a given speed
+    assert notes.range_detail(
+        "beepbeep", medium=Medium(speed_m_s=340.0), detector="changepoint"
+    ) == ("scheme beepbeep, detector changepoint, speed of sound 340 m/s, self-distance 0")
+    cal = notes.range_detail(
+        "beepbeep", medium=Medium(temp_c=25.5), detector="changepoint", template="sweep.wav",
+        calibration="cal.json", setup=TwoWaySetup(),
+    )  # fmt: skip
+    assert cal == (
+        "scheme beepbeep, template 'sweep.wav', temperature 25.5 C, self-distance 0, "
+        "calibration 'cal.json'"
+    )
+    # the ultrasonic schemes: the coded burst, no self-distance even if a setup is given
+    for scheme in ("oneway", "echo"):
+        assert notes.range_detail(scheme, medium=Medium(), setup=sd) == (
+            f"scheme {scheme}, coded burst (--code), temperature 20 C"
+        )
+    assert notes.range_detail("oneway", medium=Medium(speed_m_s=343.5), template="c.wav") == (
+        "scheme oneway, template 'c.wav', speed of sound 343.5 m/s"
+    )
+    # values by the text rule: no float repr
+    sd = TwoWaySetup(self_distance_m=(0.1 + 0.2, 0.12))
+    assert notes.range_detail("beepbeep", medium=Medium(), detector="x", setup=sd).endswith(
+        "self-distance 0.3,0.12"
+    )
+
+
+def test_calibrate_detail():
+    from rangekit.physics import Medium
+
+    one = notes.calibrate_detail("beepbeep", n_recordings=4, medium=Medium(), template="s.wav")
+    assert one == "beepbeep, template 's.wav', 4 recordings, c = 343.29 m/s"
+    assert notes.calibrate_detail(
+        "beepbeep", n_recordings=8, medium=Medium(speed_m_s=340.0), detector="changepoint"
+    ) == ("beepbeep, detector changepoint, 8 recordings, c = 340.00 m/s")
+    assert notes.calibrate_detail(
+        "beepbeep", n_recordings=4, medium=Medium(temp_c=30.0), template="s.wav"
+    ).endswith("c = 349.10 m/s")
+
+
+def test_locate_detail():
+    assert notes.locate_detail([0, 2], source="--tx", method="hybrid", sigma_m=0.002) == (
+        "2 transmitters (0, 2) from --tx, method hybrid, distance sigma 0.002 m"
+    )
+    assert notes.locate_detail([0, 1, 2], source="d.csv", method="hybrid") == (
+        "3 transmitters (0, 1, 2) from d.csv, method hybrid, distance sigma none"
+    )
+    per = notes.locate_detail(
+        [0, 1], source="standard input", method="direct", sigma_m=np.full((2, 3), 0.01)
+    )
+    assert (
+        per == "2 transmitters (0, 1) from standard input, method direct, distance sigma per range"
+    )
+    assert notes.locate_detail([3], source="x", method="hybrid", sigma_m=np.float64(0.01)).endswith(
+        "distance sigma 0.01 m"
+    )
