@@ -922,7 +922,10 @@ def track_report(
     robust : str, optional
         The ``robust`` given to :func:`track_anchors` (None: its default).
     initial_pose : sequence of float, optional
-        The ``initial_pose`` given to :func:`track_anchors`.
+        The ``initial_pose`` given to :func:`track_anchors`: (x_m, y_m, heading_rad) or
+        (x_m, y_m). The JSON keeps it so; the parameters for people
+        (:meth:`~rangekit.io.tracks.TrackReport.parameters_text`) show the heading in
+        degrees, as ``--initial-pose`` takes it.
     smoothed : bool
         Report the smoothed track.
 
@@ -951,6 +954,8 @@ def track_report(
         "initial_pose": pose0,
         **track.diagnostics(),
     }
-    parameters = {"rig": rig, "robust": robust, "initial_pose": pose0 or "from the ranges"}
+    # For people, as --initial-pose takes it: x, y in m and the heading in degrees.
+    shown = None if pose0 is None else [*pose0[:2], *(math.degrees(h) for h in pose0[2:])]
+    parameters = {"rig": rig, "robust": robust, "initial_pose": shown or "from the ranges"}
     return TrackReport("range-ekf", str(log), columns, rows, smoothed=smoothed, extra=extra,
                        summary=summary, parameters=parameters)  # fmt: skip

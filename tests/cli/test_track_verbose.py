@@ -40,6 +40,8 @@ CASES = [
      "accel_psd 0.05, gate none, cross_sign physical, iterations 5, engine compiled"),
     (["range-ekf", "--rig", str(SQUARE), "robot.csv"],
      f"rig {SQUARE}, robust huber, initial_pose from the ranges"),
+    (["range-ekf", "--rig", str(SQUARE), "robot.csv", "--initial-pose", "1,1,30"],
+     f"rig {SQUARE}, robust huber, initial_pose 1,1,30"),  # degrees, as given (not 0.523599)
     (["dead-reckoning", "imu.csv"], "gate none, smooth no"),
     (["dead-reckoning", "imu.csv", "--smooth", "--gate", "0.5"], "gate 0.5, smooth yes"),
     (["lmax", "fixes.csv", "--l-max", "0.5", "--i-star", "3"],

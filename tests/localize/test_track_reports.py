@@ -87,4 +87,5 @@ def test_anchor_report_biases_and_downweighted(robot):
     rep = anchor_ekf.track_report(given, log="r.csv", rig="s.json", robust="none",
                                   initial_pose=pose0)  # fmt: skip
     assert "(start: given), 0 ranges down-weighted (none)" in rep.summary
-    assert rep.extra["initial_pose"] == pose0 == rep.parameters["initial_pose"]
+    assert rep.extra["initial_pose"] == pose0  # JSON: radians; for people: degrees
+    assert rep.parameters["initial_pose"] == [1.0, 1.0, math.degrees(pose0[2])]
