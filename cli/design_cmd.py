@@ -16,6 +16,9 @@ from rangekit_cli._options_types import LazyHelpOption, library_default, library
 BURST = "rangekit.signals.barker:CodedBurst"
 SWEEP = "rangekit.signals.probe:linear_sweep"
 FADE = "rangekit.signals.probe:DEFAULT_FADE_S"
+#: design sweep's options by the names of rangekit.signals.design.design_sweep's arguments.
+NAMES = {"f0_hz": "--f0", "f1_hz": "--f1", "duration_s": "--duration", "fs": "--fs"}
+NAMES["fade_s"] = "--fade"
 
 
 def _code_default() -> str:
@@ -59,18 +62,12 @@ def design_beep(amplitude, fs, output, **beep_kw):
     raised-cosine tapers. Every parameter can be changed; the same options must then be
     given to `rangekit range` and `rangekit detect`.
     """
-    import numpy as np
-
-    from rangekit.io.audio import write_audio
     from rangekit.io.notes import beep_note
-    from rangekit.signals.beep import beep_continuous, check_beep_fits
+    from rangekit.signals.design import design_beep
 
-    beep = make_beep(beep_kw, amplitude=amplitude)
-    rate = beep.fs if fs is None else fs
-    check_beep_fits(beep, fs=rate, what="--fs")
-    x = beep_continuous(np.arange(int(np.ceil(beep.duration_s * rate))) / rate, beep=beep)
-    write_audio(output, x, fs=rate, subtype="PCM_16")
-    note(beep_note(output, beep, fs=rate))
+    d = design_beep(make_beep(beep_kw, amplitude=amplitude), fs=fs, what="--fs")
+    d.write(output)
+    note(beep_note(output, d.signal, fs=d.fs))
 
 
 @design.command("barker")
@@ -125,16 +122,16 @@ def design_barker(code, carrier, cycles_per_bit, amplitude, fs, output):
     """
     from rangekit_cli._options import make_burst
 
-    from rangekit.io.audio import write_audio
     from rangekit.io.notes import burst_note
-    from rangekit.signals.barker import CodedBurst, burst_waveform
+    from rangekit.signals.barker import CodedBurst
+    from rangekit.signals.design import design_barker
 
     b = make_burst(
         {"code": code, "carrier": carrier, "cycles_per_bit": cycles_per_bit}, scheme="oneway"
     )
-    burst = CodedBurst(b.code, b.carrier_hz, b.cycles_per_bit, amplitude, fs)
-    write_audio(output, burst_waveform(burst), fs=fs, subtype="PCM_16")
-    note(burst_note(output, burst))
+    d = design_barker(CodedBurst(b.code, b.carrier_hz, b.cycles_per_bit, amplitude, fs))
+    d.write(output)
+    note(burst_note(output, d.signal))
 
 
 @design.command("sweep")
@@ -208,22 +205,15 @@ def design_sweep(f0, f1, duration, fs, fade, amplitude, output):
       rangekit design sweep --f0 17000 --f1 20000 --duration 0.1 -o sweep.wav
       rangekit design sweep --f0 20 --f1 20000 --duration 1 --fs 48000 -o full.wav
     """
-    from rangekit.io.audio import write_audio
     from rangekit.io.notes import sweep_note
-    from rangekit.signals.probe import linear_sweep
+    from rangekit.signals.design import design_sweep
+    from rangekit.signals.probe import SweepError
 
-    for opt, f in (("--f0", f0), ("--f1", f1)):
-        if f >= 0.5 * fs:
-            raise click.BadParameter(
-                f"{f:g} Hz is not below the Nyquist frequency {0.5 * fs:g} Hz of --fs {fs:g}",
-                param_hint=opt,
-            )
-    if f0 == f1:
-        raise click.UsageError(f"--f0 and --f1 are both {f0:g} Hz; a sweep needs two frequencies")
-    if fade is not None and fade > 0.5 * duration:
-        raise click.BadParameter(
-            f"{fade:g} s is longer than half of --duration {duration:g} s", param_hint="--fade"
-        )
-    probe = linear_sweep(f0, f1, duration, fs=fs, fade_s=fade, amplitude=amplitude)
-    write_audio(output, probe.samples, fs=fs, subtype="PCM_16")
-    note(sweep_note(output, probe, f0_hz=f0, f1_hz=f1, duration_s=duration, fade_s=fade))
+    try:
+        d = design_sweep(f0, f1, duration, fs=fs, fade_s=fade, amplitude=amplitude, names=NAMES)
+    except SweepError as e:  # the library's check, as a usage error naming the options
+        if e.parameter is None:
+            raise click.UsageError(e.reason) from None
+        raise click.BadParameter(e.reason, param_hint=e.parameter) from None
+    d.write(output)
+    note(sweep_note(output, d.signal, f0_hz=f0, f1_hz=f1, duration_s=duration, fade_s=fade))

@@ -42,7 +42,15 @@ import numpy as np
 from rangekit import _validate as V
 from rangekit.errors import AudioFormatError, IncompatibleInputError, InvalidParameterError
 
-__all__ = ["BAND_ENERGY", "Probe", "linear_sweep", "read_probe", "sweep_fade_s"]
+__all__ = [
+    "BAND_ENERGY",
+    "Probe",
+    "SweepError",
+    "check_sweep",
+    "linear_sweep",
+    "read_probe",
+    "sweep_fade_s",
+]
 
 #: Fraction of the probe's energy that :meth:`Probe.band_hz` must enclose.
 BAND_ENERGY = 0.999
@@ -232,18 +240,7 @@ def linear_sweep(
     >>> p.name, len(p.samples), float(np.max(np.abs(p.samples))) <= 0.5
     ('sweep 20-20000 Hz, 0.5 s', 22050, True)
     """
-    fs = V.sample_rate(fs)
-    f0 = V.positive("f0_hz", f0_hz, allow_zero=True)
-    f1 = V.positive("f1_hz", f1_hz, allow_zero=True)
-    for name, f in (("f0_hz", f0), ("f1_hz", f1)):
-        if f >= 0.5 * fs:
-            raise InvalidParameterError(
-                f"{name}={f:g} Hz is not below the Nyquist frequency {0.5 * fs:g} Hz of fs={fs:g}"
-            )
-    if f0 == f1:
-        raise InvalidParameterError(f"f0_hz and f1_hz are both {f0:g} Hz; a sweep needs two")
-    T = V.in_range("duration_s", duration_s, 1e-3, 600.0)
-    fade = sweep_fade_s(T) if fade_s is None else V.in_range("fade_s", fade_s, 0.0, T / 2)
+    fs, f0, f1, T, fade = check_sweep(f0_hz, f1_hz, duration_s, fs=fs, fade_s=fade_s)
     amplitude = V.in_range("amplitude", amplitude, 1e-6, 1.0)
     n = int(round(T * fs))
     t = np.arange(n) / fs
@@ -255,6 +252,94 @@ def linear_sweep(
         x[n - m :] *= ramp[::-1]
     x *= amplitude / max(float(np.max(np.abs(x))), 1e-300)
     return Probe(x, fs, f"sweep {f0:g}-{f1:g} Hz, {T:g} s")
+
+
+class SweepError(InvalidParameterError):
+    """Sweep arguments that do not fit together, named as the caller names them
+    (:func:`check_sweep` with ``names``).
+
+    Attributes
+    ----------
+    parameter : str or None
+        The caller's name of the argument at fault; None when two are at fault together
+        (the message names both).
+    reason : str
+        Why, without the name of ``parameter`` (the whole message when it is None).
+    """
+
+    def __init__(self, message: str, *, parameter: str | None = None, reason: str | None = None):
+        super().__init__(message)
+        self.parameter = parameter
+        self.reason = message if reason is None else reason
+
+
+def check_sweep(
+    f0_hz: float,
+    f1_hz: float,
+    duration_s: float,
+    *,
+    fs: float = 44100.0,
+    fade_s: float | None = None,
+    names: dict[str, str] | None = None,
+) -> tuple[float, float, float, float, float]:
+    """The checks of :func:`linear_sweep`'s arguments (amplitude apart), in one place:
+    ``(fs, f0_hz, f1_hz, duration_s, fade_s)`` as floats, the default fade filled in.
+
+    Parameters
+    ----------
+    f0_hz, f1_hz, duration_s, fs, fade_s
+        As :func:`linear_sweep` takes them.
+    names : dict, optional
+        The caller's names of the arguments (``{"f0_hz": "--f0", "fs": "--fs", ...}``):
+        the frequencies at or above Nyquist, equal frequencies and a fade longer than half
+        the sweep then raise :class:`SweepError` naming the arguments so (a name that
+        starts with ``-`` is shown as an option: ``--fs 16000``, not ``fs=16000``).
+        Without it the messages are :func:`linear_sweep`'s.
+
+    Raises
+    ------
+    InvalidParameterError
+        An argument out of its domain (:class:`SweepError` for those above, with ``names``).
+
+    Examples
+    --------
+    >>> check_sweep(2000.0, 6000.0, 0.1)
+    (44100.0, 2000.0, 6000.0, 0.1, 0.005)
+    >>> try:
+    ...     check_sweep(9000.0, 2000.0, 0.1, fs=16000.0, names={"f0_hz": "--f0", "fs": "--fs"})
+    ... except SweepError as e:
+    ...     print(e.parameter, "|", e.reason)
+    --f0 | 9000 Hz is not below the Nyquist frequency 8000 Hz of --fs 16000
+    """
+    n = {k: k for k in ("f0_hz", "f1_hz", "duration_s", "fs", "fade_s")}
+    n.update(names or {})
+
+    def ref(key: str, value: str) -> str:  # an argument and its value, as the caller writes it
+        return f"{n[key]} {value}" if n[key].startswith("-") else f"{n[key]}={value}"
+
+    def fail(key: str, value: str, why: str):
+        if names is None:
+            return InvalidParameterError(f"{ref(key, value)} {why}")
+        return SweepError(f"{n[key]}: {value} {why}", parameter=n[key], reason=f"{value} {why}")
+
+    fs = V.sample_rate(fs)
+    f0 = V.positive("f0_hz", f0_hz, allow_zero=True)
+    f1 = V.positive("f1_hz", f1_hz, allow_zero=True)
+    for key, f in (("f0_hz", f0), ("f1_hz", f1)):
+        if f >= 0.5 * fs:
+            why = f"Hz is not below the Nyquist frequency {0.5 * fs:g} Hz of {ref('fs', f'{fs:g}')}"
+            raise fail(key, f"{f:g}", why)
+    if f0 == f1:
+        both = f"{n['f0_hz']} and {n['f1_hz']} are both {f0:g} Hz; a sweep needs two"
+        if names is None:
+            raise InvalidParameterError(both)
+        raise SweepError(both + " frequencies")
+    T = V.in_range("duration_s", duration_s, 1e-3, 600.0)
+    if names is not None and fade_s is not None and fade_s > T / 2:
+        why = f"s is longer than half of {ref('duration_s', f'{T:g}')} s"
+        raise fail("fade_s", f"{fade_s:g}", why)
+    fade = sweep_fade_s(T) if fade_s is None else V.in_range("fade_s", fade_s, 0.0, T / 2)
+    return fs, f0, f1, T, fade
 
 
 def sweep_fade_s(duration_s: float) -> float:
