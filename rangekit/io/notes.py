@@ -289,18 +289,21 @@ def calibrate_detail(
     template: str | None = None,
 ) -> str:
     """What ``rangekit calibrate --verbose`` says the fit uses, after
-    ``rangekit: calibrate: ``: the scheme, the signal, how many recordings and the speed
-    of sound the offset is fitted with (:attr:`Medium.c <rangekit.physics.Medium>`, to
-    0.01 m/s).
+    ``rangekit: calibrate: ``: the scheme, the signal (as :func:`range_detail` names it),
+    how many recordings and the speed of sound the offset is fitted with
+    (:attr:`Medium.c <rangekit.physics.Medium>`, to 0.01 m/s).
 
     Examples
     --------
     >>> from rangekit.physics import Medium
     >>> calibrate_detail("beepbeep", n_recordings=4, medium=Medium(), template="sweep.wav")
     "beepbeep, template 'sweep.wav', 4 recordings, c = 343.29 m/s"
+    >>> calibrate_detail("oneway", n_recordings=1, medium=Medium(), detector="changepoint")
+    'oneway, coded burst (--code), 1 recording, c = 343.29 m/s'
     """
-    sig = f"template '{template}'" if template is not None else f"detector {detector}"
-    return f"{scheme}, {sig}, {n_recordings} recordings, c = {medium.c:.2f} m/s"
+    sig = _signal_text(scheme, detector, template)
+    what = f"{n_recordings} recording{'' if n_recordings == 1 else 's'}"
+    return f"{scheme}, {sig}, {what}, c = {medium.c:.2f} m/s"
 
 
 def locate_detail(ids, *, source: str, method: str, sigma_m=None) -> str:

@@ -185,6 +185,13 @@ def test_calibrate_detail():
     assert notes.calibrate_detail(
         "beepbeep", n_recordings=4, medium=Medium(temp_c=30.0), template="s.wav"
     ).endswith("c = 349.10 m/s")
+    # one-way: the coded burst, not the beep's detector (it printed "detector changepoint")
+    assert notes.calibrate_detail(
+        "oneway", n_recordings=1, medium=Medium(), detector="changepoint"
+    ) == ("oneway, coded burst (--code), 1 recording, c = 343.29 m/s")
+    assert notes.calibrate_detail(
+        "oneway", n_recordings=3, medium=Medium(), detector="changepoint", template="c.wav"
+    ).startswith("oneway, template 'c.wav', 3 recordings")
 
 
 def test_locate_detail():
