@@ -9,6 +9,9 @@ fractional-delay offset is removed by the harness (tested on the anechoic room).
 
 from __future__ import annotations
 
+import sys
+from pathlib import Path
+
 import pytest
 
 pytest.importorskip("pyroomacoustics")
@@ -20,15 +23,20 @@ from rangekit.experiments.oneway_accuracy import (
 )
 from rangekit.ranging.ultrasonic import range_oneway
 
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+from perturb import worse, worse_rows  # tests/perturb.py: errors x $RANGEKIT_TEST_WORSE
 
-@pytest.mark.parametrize("q", [4.0, 15.0])
-def test_time_origin_of_the_pyroomacoustics_render(q):
-    """Anechoic, noiseless: every range within 0.02 mm (measured <= 0.011 mm), i.e. the
-    harness's sample 0 is the drive's start (pyroomacoustics' 40 samples removed)."""
+
+# Measured max |error| (noiseless: no scatter): 0.72 um at Q 4, 11.0 um at Q 15.
+@pytest.mark.parametrize(("q", "bound_m"), [(4.0, 1.5e-6), (15.0, 2e-5)])
+def test_time_origin_of_the_pyroomacoustics_render(q, bound_m):
+    """Anechoic, noiseless: every range within 1.5 um / 0.02 mm at Q 4 / 15 (measured
+    <= 0.72 um / 11.0 um), i.e. the harness's sample 0 is the drive's start
+    (pyroomacoustics' 40 samples removed: one of them is 1.8 mm)."""
     x, truth = render_room_oneway(q=q, rng=1, max_order=0, snr_db=None, n_windows=1)
     rows = range_oneway(x, fs=192000.0, speed_m_s=truth["speed_of_sound_m_s"])
     for r in rows:
-        assert abs(r.distance_m - truth["distances_m"][r.channel]) < 2e-5
+        assert abs(worse(r.distance_m - truth["distances_m"][r.channel])) < bound_m
 
 
 @pytest.mark.parametrize(
@@ -42,7 +50,7 @@ def test_time_origin_of_the_pyroomacoustics_render(q):
     [(20.0, 1.2, 0.02), (10.0, 4.0, 0.15)],
 )
 def test_room_ranges_with_unknown_q(snr, rms_mm, order_rate):
-    s = summarize_q(run_room_trials(15, snr_db=snr, rng=[16, int(snr)]))
+    s = summarize_q(worse_rows(run_room_trials(15, snr_db=snr, rng=[16, int(snr)])))
     assert s["misses"] == 0 and s["gross"] == 0
     assert s["rms_m"] <= rms_mm * 1e-3
     assert abs(s["bias_m"]) <= 0.5e-3

@@ -8,6 +8,9 @@ rangekit's own renders. Bounds sit within about 2x of what was measured on these
 
 from __future__ import annotations
 
+import sys
+from pathlib import Path
+
 import numpy as np
 import pyroomacoustics  # noqa: F401  (a test dependency: fail, do not skip, without it)
 import pytest
@@ -19,6 +22,9 @@ from rangekit.ranging.pipeline import range_channels
 from rangekit.sim.impair import Impairments, impair
 from rangekit.sim.recording import pair_devices, render_beepbeep
 
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+from perturb import worse, worse_rows  # tests/perturb.py: errors x $RANGEKIT_TEST_WORSE
+
 
 @pytest.fixture(scope="module")
 def impaired_rows():
@@ -26,7 +32,7 @@ def impaired_rows():
 
 
 def test_impaired_room_corpus(impaired_rows):
-    s = summarize(impaired_rows)
+    s = summarize(worse_rows(impaired_rows))
     # Measured (seed 11, 60 exchanges): no failures, median 3.5 mm, p90 1.8 cm, 5 errors
     # above 10 cm all flagged, 90 % within 2 sigma (docs/accuracy.md: 200 exchanges). A
     # beep timed one burst spacing late (fixed since) made the p90 9.4 cm.
@@ -38,7 +44,7 @@ def test_impaired_room_corpus(impaired_rows):
 
 
 def test_clean_room_corpus():
-    s = summarize(run_corpus(40, rng=5, impaired=False))
+    s = summarize(worse_rows(run_corpus(40, rng=5, impaired=False)))
     # Measured: 2 failures of 40, median 4.3 mm, p90 1.08 cm, one error above 10 cm (flagged).
     assert s["failures"] <= 4
     assert s["median_m"] <= 0.009
@@ -69,7 +75,8 @@ def _range(recs, fs, **kw):
     ids=["dc5%", "clip12dB", "silence1s", "lf+hum", "speech"],
 )
 def test_impairments_on_own_renders(spec):
-    """Each impairment alone on rangekit's renders: within 1 cm, or flagged (was 4-31 cm)."""
+    """Each impairment alone on rangekit's renders: within 2.5 mm, flagged or not (was 4-31
+    cm before the impairments were handled; the issue asked 1 cm)."""
     for seed in (1, 2, 3):
         sim = _exchange(seed)
         rng = np.random.default_rng(100 + seed)
@@ -84,8 +91,12 @@ def test_impairments_on_own_renders(spec):
             for i, x in enumerate(sim.recordings)
         ]
         r = _range(recs, sim.fs[0], self_distance_m=0.1)
-        err = abs(r.distance_m - sim.distances_m[0, 1])
-        assert err <= 0.01 or (r.flags and err <= 0.05), (spec, seed, err, r.flags)
+        err = abs(worse(r.distance_m - sim.distances_m[0, 1]))
+        # Measured (seeds 1-3): 0.92 / 0.14 / 0.08 mm for dc, silence and lf+hum (as the
+        # unimpaired exchanges), 1.01 / 0.01 / 0.17 mm clipped (flagged), 1.00 / 0.24 /
+        # 0.06 mm with speech. The unimpaired exchange's own scatter (seeds 1-30 at 2 m):
+        # median 0.91, p90 2.2, max 3.7 mm, so 2.5 mm holds these seeds, not any three.
+        assert err <= 2.5e-3, (spec, seed, err, r.flags)
 
 
 def test_clipped_own_beep_is_flagged_and_unbiased():
@@ -97,5 +108,6 @@ def test_clipped_own_beep_is_flagged_and_unbiased():
     arr = detect_changepoint(recs[0], fs=sim.fs[0])
     assert "clipped" in arr.flag_names(0)
     on = sim.onsets[0]
-    # measured 1.85 samples off (the band-limited fit was 5-6 samples early: +4-5 cm)
-    assert abs(arr.onset[0] - on[0]) < 3.0
+    # measured 0.073 samples off (seeds 4-15: |error| <= 0.073; 1.85 samples before the
+    # template fit; the band-limited fit was 5-6 samples early: +4-5 cm)
+    assert abs(worse(arr.onset[0] - on[0])) < 0.15

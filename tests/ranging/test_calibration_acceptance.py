@@ -16,6 +16,9 @@ median 0.108 mm, p90 1.46 mm, worst 3.29 mm.
 
 from __future__ import annotations
 
+import sys
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -28,6 +31,9 @@ from rangekit.signals.probe import linear_sweep
 from rangekit.sim.exchanges import render_exchanges
 from rangekit.sim.recording import Device
 from rangekit.sim.room import ShoeboxRoom
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+from perturb import worse  # tests/perturb.py: errors x $RANGEKIT_TEST_WORSE
 
 SWEEPS = [
     (17000.0, 20000.0, 0.1),
@@ -140,7 +146,7 @@ def _within(scheme, err) -> bool:
 
 @pytest.mark.parametrize("scheme", ["beepbeep", "oneway"])
 def test_sweeps_in_rooms_after_one_distance_calibration(scheme):
-    err = _errors(scheme, np.random.default_rng(8))
+    err = worse(_errors(scheme, np.random.default_rng(8)))
     assert len(err) == len(SWEEPS) * len(TEST_DISTANCES_M)
     assert _within(scheme, err), err
     # Perturbation: the same ranges with 3x the error fail the bounds.
@@ -153,5 +159,6 @@ def test_without_calibration_the_offset_is_there():
     probe = linear_sweep(17000.0, 20000.0, 0.1)
     self_m = np.array([0.15, 0.19])
     r, true = _two_way(probe, _pair(rng, 2.0, self_m), rng)
-    # measured: off by 0.1703 m against a mean self-distance of 0.17 m (0.28 mm apart)
-    assert abs((true - r.distance_m) - self_m.mean()) < 0.6 * MM
+    # measured: off by the mean self-distance of 0.17 m to 0.036 mm (the bound is the
+    # scatter of one exchange: two-way p90 0.43 mm above); worse() scales the whole error
+    assert abs(worse(true - r.distance_m) - self_m.mean()) < 0.6 * MM

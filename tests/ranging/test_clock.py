@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import math
+import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -23,6 +25,9 @@ from rangekit.signals import Beep, beep_waveform
 from rangekit.sim import ShoeboxRoom, pair_devices
 from rangekit.sim.exchanges import render_exchanges
 from rangekit.types import Arrivals, Range
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+from perturb import worse  # tests/perturb.py: errors x $RANGEKIT_TEST_WORSE
 
 C = 343.0
 FS = 44100.0
@@ -213,7 +218,7 @@ def test_acceptance_40_exchanges_in_a_room(tmp_path, distance_m, ppm, seed):
     c = speed_of_sound_m_s(20.0)
     fixed = correct_clock(ex, rates, speed_m_s=c, self_distance_m=0.1)
     d = sim.distances_m[0, 1]
-    err = np.abs([e.ranges[0].distance_m - d for e in fixed])
+    err = worse(np.abs([e.ranges[0].distance_m - d for e in fixed]))
     # Issue 8 asked for median <= 1 cm and p90 <= 3 cm; within 2x of today (issue 21):
     # measured median 1.05 / 1.01 / 0.75 mm, p90 2.11 / 2.62 / 2.48 mm (the three cases).
     assert np.median(err) <= 2.1e-3 and np.percentile(err, 90) <= 5.3e-3, err

@@ -19,6 +19,8 @@ test's seed (in the comments), so a regression fails.
 from __future__ import annotations
 
 import math
+import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -28,6 +30,9 @@ from rangekit.ranging.ultrasonic import range_oneway
 from rangekit.signals.transducer import Transducer
 from rangekit.sim.ultrasonic import render_oneway
 
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+from perturb import worse, worse_rows  # tests/perturb.py: errors x $RANGEKIT_TEST_WORSE
+
 QS = (4.0, 8.0, 12.0, 16.0, 20.0)
 #: RMS bounds at 10 dB, mm (measured 1.14, 1.59, 2.07, 2.54, 2.88; the issue's 3 mm).
 RMS_10DB_MM = {4.0: 2.0, 8.0: 2.6, 12.0: 3.0, 16.0: 3.0, 20.0: 3.0}
@@ -35,20 +40,30 @@ RMS_10DB_MM = {4.0: 2.0, 8.0: 2.6, 12.0: 3.0, 16.0: 3.0, 20.0: 3.0}
 RMS_20DB_MM = {4.0: 0.7, 8.0: 1.0, 12.0: 1.3, 16.0: 1.5, 20.0: 1.8}
 
 
-def _table(snr: float, n: int) -> dict:
-    return {
-        q: summarize_q(run_q_trials(n, snr_db=snr, q=q, rng=[16, int(snr), int(q)])) for q in QS
-    }
+def _rows(snr: float, n: int) -> dict:
+    return {q: run_q_trials(n, snr_db=snr, q=q, rng=[16, int(snr), int(q)]) for q in QS}
 
 
 @pytest.fixture(scope="module")
-def at_10db():
-    return _table(10.0, 20)  # 600 ranges per Q
+def rows_10db():
+    return _rows(10.0, 20)  # 600 ranges per Q
 
 
 @pytest.fixture(scope="module")
-def at_20db():
-    return _table(20.0, 10)  # 300 ranges per Q
+def rows_20db():
+    return _rows(20.0, 10)  # 300 ranges per Q
+
+
+# The summaries are made in each test (not cached) so that the rows' errors pass
+# through worse() before they are read.
+@pytest.fixture
+def at_10db(rows_10db):
+    return {q: summarize_q(worse_rows(r)) for q, r in rows_10db.items()}
+
+
+@pytest.fixture
+def at_20db(rows_20db):
+    return {q: summarize_q(worse_rows(r)) for q, r in rows_20db.items()}
 
 
 @pytest.mark.parametrize("q", QS)
@@ -67,14 +82,21 @@ def test_rms_at_20db(at_20db, q):
     assert s["rms_m"] <= RMS_20DB_MM[q] * 1e-3
 
 
+# snr -> (spread, max |bias|) bounds, m. Measured 2026-12-02: spread 0.130 / 0.105 mm,
+# max |bias| 0.071 / 0.100 mm at 10 / 20 dB; the biases' standard errors are 0.05-0.12 /
+# 0.02-0.05 mm, so the 10 dB |bias| bound is the scatter's (3 se), not 2x the value.
+CAL_BOUNDS_M = {10.0: (0.26e-3, 0.35e-3), 20.0: (0.21e-3, 0.20e-3)}
+
+
 @pytest.mark.parametrize("snr", [10.0, 20.0])
 def test_one_point_calibration_leaves_no_bias_across_q(at_10db, at_20db, snr):
-    """Calibrated at Q 12, the bias at Q 4-20 stays within 0.5 mm (measured spread 0.12 mm
-    at 10 dB, 0.10 mm at 20 dB; the acceptance asks 2 mm)."""
+    """Calibrated at Q 12, the bias at Q 4-20 stays within 0.26 / 0.21 mm at 10 / 20 dB
+    (measured spread 0.130 / 0.105 mm; the acceptance asks 2 mm)."""
     table = at_10db if snr == 10.0 else at_20db
     sp = calibrated_spread(table, at_q=12.0)
-    assert sp["spread_m"] <= 0.5e-3
-    assert max(abs(s["bias_m"]) for s in table.values()) <= 0.5e-3  # uncalibrated too
+    spread, bias = CAL_BOUNDS_M[snr]
+    assert sp["spread_m"] <= spread
+    assert max(abs(s["bias_m"]) for s in table.values()) <= bias  # uncalibrated too
 
 
 @pytest.mark.parametrize("snr", [10.0, 20.0])
@@ -89,14 +111,19 @@ def test_sigma_covers_the_error(at_10db, at_20db, snr):
 def test_0db_is_flagged_low_snr_and_no_gross_error_goes_unflagged(q):
     """At 0 dB the direct path is at the detection threshold and the 1.5x reflection is
     taken for it in most windows (measured: 65 % of the ranges at Q 4, 88 % at Q 20 more
-    than 2 cm off; RMS of the others 4.3 / 8.3 mm): every range is flagged ``low_snr``."""
-    rows = run_q_trials(10, snr_db=0.0, q=q, rng=[16, 0, int(q)])
+    than 2 cm off; RMS of the others 4.3 / 7.9 mm): every range is flagged ``low_snr``."""
+    rows = worse_rows(run_q_trials(10, snr_db=0.0, q=q, rng=[16, 0, int(q)]))
     s = summarize_q(rows)
     found = [r for r in rows if not r["missed"]]
     assert len(found) >= 0.9 * len(rows)
     assert all("low_snr" in r["flags"] for r in found)
     assert s["gross_unflagged"] == 0
+    # RMS over the ranges within 2 cm (measured 4.34 / 7.88 mm): at Q 20 a 3x error moves
+    # most of them beyond 2 cm, so the median over every found range (the reflection's,
+    # untrimmed: measured 0.217 / 0.430 m) is what sees it.
     assert s["rms_m"] <= {4.0: 8e-3, 20.0: 16e-3}[q]
+    e = np.abs([r["error_m"] for r in found])
+    assert np.median(e) <= {4.0: 0.45, 20.0: 0.9}[q]
 
 
 @pytest.mark.parametrize(("q", "old_bias_mm"), [(8.0, 11.0), (15.0, 24.0)])
@@ -113,7 +140,7 @@ def test_the_q4_template_was_biased_and_the_fit_is_not(q, old_bias_mm):
 
     def bias(**kw) -> float:
         rows = range_oneway(sim.x, fs=sim.fs, period_s=0.03, **kw)
-        return float(np.mean([r.distance_m - truth[r.window, r.channel] for r in rows]))
+        return float(worse(np.mean([r.distance_m - truth[r.window, r.channel] for r in rows])))
 
     assert bias(fit_transducers=False) == pytest.approx(old_bias_mm * 1e-3, abs=3e-3)
     assert abs(bias()) < 0.5e-3
@@ -139,7 +166,8 @@ def test_a_transducer_outside_both_models_is_not_confidently_wrong(q, late_mm, s
     order_terms``), so sigma covers the error (measured: 100 % within 2 sigma, the term
     on every range, its median 13.9 / 35.6 mm) and nothing is confidently wrong. Before
     it: 0.8 / 3.3 % within 2 sigma at sigma 0.8 mm, unflagged."""
-    s = summarize_q(run_q_trials(3, snr_db=20.0, q=q, model="bandpass6", rng=[16, 20, int(q)]))
+    rows = run_q_trials(3, snr_db=20.0, q=q, model="bandpass6", rng=[16, 20, int(q)])
+    s = summarize_q(worse_rows(rows))
     assert s["median_m"] == pytest.approx(late_mm * 1e-3, rel=0.3)  # still late
     assert s["order_rate"] >= 0.9
     assert s["coverage_2sigma"] >= 0.9

@@ -5,11 +5,14 @@ speaker-to-microphone distances play a 17-20 kHz sweep in a room at SNR 20 dB; t
 rate is estimated from the series (within 2 ppm), the ranges corrected, and calibrated by
 the offset fitted from three clock-corrected exchanges of another series at 1 m; then
 median |err| <= 1 cm and p90 <= 3 cm. Measured: rate error < 0.001 ppm; corrected median
-0.39 / 0.59 mm, p90 0.48 / 0.67 mm (+50 / -100 ppm relative); without the clock
+0.216 / 0.087 mm, p90 0.289 / 0.213 mm (+50 / -100 ppm relative); without the clock
 correction the median error is 3.3 / 8.0 mm (c/2 x ppm x the 0.35-0.55 s gap).
 """
 
 from __future__ import annotations
+
+import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -23,6 +26,9 @@ from rangekit.signals.probe import linear_sweep
 from rangekit.sim.exchanges import render_exchanges
 from rangekit.sim.recording import pair_devices
 from rangekit.sim.room import ShoeboxRoom
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+from perturb import worse  # tests/perturb.py: errors x $RANGEKIT_TEST_WORSE
 
 C = speed_of_sound_m_s(20.0)
 ROOM = ShoeboxRoom((6.0, 5.0, 3.0), absorption=0.3, max_order=2)
@@ -64,10 +70,12 @@ def test_skewed_sweep_series_corrected_and_calibrated(tmp_path, ppm):
     assert abs(rates.ppm[1] - rel) <= 2.0
     fixed = correct_clock(ex, rates, speed_m_s=C)
     got = np.array([r.distance_m for e in fixed for r in cal.apply_ranges(e.ranges, speed_m_s=C)])
-    err = np.abs(got - d)
+    err = worse(np.abs(got - d))
     # Issue 8 asked for median <= 1 cm and p90 <= 3 cm; within 2x of today (issue 21):
-    # measured median 0.26 / 0.69 mm, p90 0.44 / 0.90 mm (the two skews).
-    assert np.median(err) <= 1.4e-3 and np.percentile(err, 90) <= 1.8e-3, err
+    # measured 2026-12-02 median 0.216 / 0.087 mm, p90 0.289 / 0.213 mm (the two skews;
+    # 0.26 / 0.69 and 0.44 / 0.90 before the template detector's side-lobe correction).
+    # Most of it is the offset fitted from three exchanges (per-exchange sd 0.15 mm).
+    assert np.median(err) <= 0.45e-3 and np.percentile(err, 90) <= 0.6e-3, err
     # Not corrected (but calibrated): the skew error c/2 e G is there, ~G = 0.35-0.55 s.
     raw = np.array([r.distance_m for e in ex for r in cal.apply_ranges(e.ranges, speed_m_s=C)])
     assert np.median(np.abs(raw - d)) > 0.5 * C / 2 * abs(rel) * 1e-6 * 0.35
