@@ -52,22 +52,14 @@ def batch_options(
 
 
 def details(options, sessions, output) -> None:
-    """With --verbose: what was chosen (stderr), before the progress."""
+    """With --verbose: what was chosen (stderr), before the progress, as the library says
+    it (:func:`rangekit.io.notes.batch_details`)."""
     from rangekit_cli._options import detail
 
-    from rangekit.batch import meta_path
+    from rangekit.io.notes import batch_details
 
-    two_way = options.beepbeep
-    d = two_way.detector or "changepoint"
-    given = "probe (--template)" if two_way.probe is not None else f"detector {d}"
-    by_sidecar = sum(bool(s.scheme or s.params) for s in sessions)
-    detail(
-        f"batch: scheme {options.scheme}, {given}; {by_sidecar} of {len(sessions)} sessions "
-        "take their scheme or setup from a sidecar"
-    )
-    if options.pair_by_name:
-        detail("batch: sessions paired by name across the device folders")
-    detail(f"batch: options recorded in {meta_path(output)}")
+    for line in batch_details(options, sessions, output):
+        detail(f"batch: {line}")
 
 
 def _probe_and_calibration(template, calibration, scheme, sd, kw, beepbeep, setups) -> dict:

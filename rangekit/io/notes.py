@@ -5,10 +5,11 @@ numbers a person checks at a glance. The lines are built here from the library's
 (the signal designed, the :class:`~rangekit.sim.scenarios.Synthesis`, the figure drawn),
 so that the command only prints them and a run from Python can say the same.
 
-With ``--verbose``, ``range``, ``calibrate`` and ``locate`` first say what the run uses
-(:func:`range_detail`, :func:`calibrate_detail`, :func:`locate_detail`), built here from the
-job's configuration objects (:class:`~rangekit.physics.Medium`,
-:class:`~rangekit.ranging.config.TwoWaySetup`) in the same way.
+With ``--verbose``, ``range``, ``calibrate``, ``locate`` and ``batch`` first say what the
+run uses (:func:`range_detail`, :func:`calibrate_detail`, :func:`locate_detail`,
+:func:`batch_details`), built here from the job's configuration objects
+(:class:`~rangekit.physics.Medium`, :class:`~rangekit.ranging.config.TwoWaySetup`,
+:class:`~rangekit.batch.BatchOptions`) in the same way.
 
 The numbers, the same in every note:
 
@@ -44,6 +45,7 @@ from rangekit.errors import InvalidParameterError
 from rangekit.io.results import format_value
 
 __all__ = [
+    "batch_details",
     "beep_note",
     "burst_note",
     "calibrate_detail",
@@ -328,3 +330,40 @@ def locate_detail(ids, *, source: str, method: str, sigma_m=None) -> str:
         f"{len(ids)} transmitters ({', '.join(map(str, ids))}) from {source}, method "
         f"{method}, distance sigma {sigma}"
     )
+
+
+def batch_details(options, sessions, output: str | os.PathLike) -> list[str]:
+    """What ``rangekit batch --verbose`` says the run uses, each line after ``batch: ``:
+    the scheme and the two-way signal of the :class:`~rangekit.batch.BatchOptions`
+    (``detector`` None: :func:`~rangekit.ranging.pipeline.range_channels`' default), how
+    many of the ``sessions`` take their scheme or setup from a sidecar, whether they were
+    paired by name, and where the options are recorded (:func:`rangekit.batch.meta_path`
+    of ``output``).
+
+    Examples
+    --------
+    >>> from rangekit.batch import BatchOptions
+    >>> batch_details(BatchOptions(), [], "r.jsonl")  # doctest: +NORMALIZE_WHITESPACE
+    ['scheme beepbeep, detector changepoint; 0 of 0 sessions take their scheme or setup
+    from a sidecar', 'options recorded in r.jsonl.meta.json']
+    """
+    import inspect
+
+    from rangekit.batch import meta_path
+    from rangekit.ranging.pipeline import range_channels
+
+    two_way = options.beepbeep
+    if two_way.probe is not None:
+        given = "probe (--template)"
+    else:
+        d = two_way.detector
+        d = inspect.signature(range_channels).parameters["detector"].default if d is None else d
+        given = f"detector {d}"
+    by_sidecar = sum(bool(s.scheme or s.params) for s in sessions)
+    lines = [
+        f"scheme {options.scheme}, {given}; {by_sidecar} of {len(sessions)} sessions take "
+        "their scheme or setup from a sidecar"
+    ]
+    if options.pair_by_name:
+        lines.append("sessions paired by name across the device folders")
+    return [*lines, f"options recorded in {meta_path(output)}"]

@@ -143,3 +143,17 @@ def test_locate_verbose_line_is_the_librarys(tmp_path):
     assert _first(r) == "rangekit: locate: " + notes.locate_detail(
         [0, 1], source=str(d), method="direct"
     )
+
+
+def test_batch_verbose_lines_are_the_librarys(tmp_path):
+    from rangekit.batch import BatchOptions, find_sessions
+
+    x = tmp_path / "x.wav"
+    ok(run(["synth", "beepbeep", "--distance", 2, "--seed", 1, "-o", x]))
+    out = tmp_path / "r.jsonl"
+    r = ok(run(["batch", x, WAV, "--detector", "xcorr", "--jobs", 1, "-v", "-o", out]))
+    want = notes.batch_details(
+        BatchOptions(beepbeep={"detector": "xcorr"}), find_sessions([str(x), str(WAV)]), out
+    )
+    assert want[0].endswith("2 of 2 sessions take their scheme or setup from a sidecar")
+    assert r.stderr.splitlines()[1:3] == [f"batch: {line}" for line in want]

@@ -210,3 +210,27 @@ def test_locate_detail():
     assert notes.locate_detail([3], source="x", method="hybrid", sigma_m=np.float64(0.01)).endswith(
         "distance sigma 0.01 m"
     )
+
+
+def test_batch_details():
+    from rangekit.batch import BatchOptions
+
+    sessions = [SimpleNamespace(scheme=None, params={}), SimpleNamespace(scheme="x", params={})]
+    sessions.append(SimpleNamespace(scheme=None, params={"temp_c": 20.0}))
+    assert notes.batch_details(BatchOptions(), sessions, "res.jsonl") == [
+        "scheme beepbeep, detector changepoint; 2 of 3 sessions take their scheme or setup "
+        "from a sidecar",
+        "options recorded in res.jsonl.meta.json",
+    ]  # changepoint: range_channels' default, the options leave it None
+    opts = BatchOptions(beepbeep={"detector": "xcorr"}, pair_by_name=True)
+    assert notes.batch_details(opts, [], "r.csv") == [
+        "scheme beepbeep, detector xcorr; 0 of 0 sessions take their scheme or setup from a "
+        "sidecar",
+        "sessions paired by name across the device folders",
+        "options recorded in r.csv.meta.json",
+    ]
+    probe = linear_sweep(2000.0, 6000.0, 0.01)
+    opts = BatchOptions(scheme="oneway", beepbeep={"probe": probe})
+    assert notes.batch_details(opts, [], "r.csv")[0].startswith(
+        "scheme oneway, probe (--template);"
+    )
