@@ -86,6 +86,7 @@ def detect_cmd(files, detector, template, expected, min_separation, weighting, f
     """
     from rangekit.detect.files import detect_files
     from rangekit.errors import DetectionError
+    from rangekit.io.notes import detect_detail
 
     ctx = click.get_current_context()
     if template is not None:
@@ -102,9 +103,8 @@ def detect_cmd(files, detector, template, expected, min_separation, weighting, f
                 raise click.UsageError(f"{opt} applies to --template only")
     probe = load_template(template)
     signal = probe if probe is not None else make_beep(beep_kw)
-    sig = f"template '{template}'" if probe is not None else "the beep"
-    exp = f", at most {expected} per channel" if expected is not None else ""
-    detail(f"rangekit: detect: {sig} by {method}{exp}")
+    name = template if probe is not None else None
+    detail("rangekit: detect: " + detect_detail(method, template=name, expected=expected))
     run = detect_files(
         files, signal=signal, method=method, expected=expected,
         min_separation_s=min_separation, weighting=weighting,

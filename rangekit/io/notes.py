@@ -5,9 +5,9 @@ numbers a person checks at a glance. The lines are built here from the library's
 (the signal designed, the :class:`~rangekit.sim.scenarios.Synthesis`, the figure drawn),
 so that the command only prints them and a run from Python can say the same.
 
-With ``--verbose``, ``range``, ``calibrate``, ``locate`` and ``batch`` first say what the
-run uses (:func:`range_detail`, :func:`calibrate_detail`, :func:`locate_detail`,
-:func:`batch_details`), built here from the job's configuration objects
+With ``--verbose``, ``range``, ``detect``, ``calibrate``, ``locate`` and ``batch`` first say
+what the run uses (:func:`range_detail`, :func:`detect_detail`, :func:`calibrate_detail`,
+:func:`locate_detail`, :func:`batch_details`), built here from the job's configuration objects
 (:class:`~rangekit.physics.Medium`, :class:`~rangekit.ranging.config.TwoWaySetup`,
 :class:`~rangekit.batch.BatchOptions`) in the same way.
 
@@ -50,6 +50,7 @@ __all__ = [
     "burst_note",
     "calibrate_detail",
     "cdf_note",
+    "detect_detail",
     "locate_detail",
     "matched_note",
     "range_detail",
@@ -280,6 +281,23 @@ def range_detail(
     if calibration is not None:
         text += f", calibration '{os.fspath(calibration)}'"
     return text
+
+
+def detect_detail(method: str, *, template: str | None = None, expected: int | None = None) -> str:
+    """What ``rangekit detect --verbose`` says the run uses, after ``rangekit: detect: ``:
+    the signal (the template named, or the beep), the method of
+    :func:`rangekit.detect.files.detect_files` and the most arrivals kept per channel.
+
+    Examples
+    --------
+    >>> detect_detail("changepoint")
+    'the beep by changepoint'
+    >>> detect_detail("template", template="sweep.wav", expected=3)
+    "template 'sweep.wav' by template, at most 3 per channel"
+    """
+    sig = f"template '{template}'" if template is not None else "the beep"
+    exp = f", at most {expected} per channel" if expected is not None else ""
+    return f"{sig} by {method}{exp}"
 
 
 def calibrate_detail(

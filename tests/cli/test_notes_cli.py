@@ -157,3 +157,9 @@ def test_batch_verbose_lines_are_the_librarys(tmp_path):
     )
     assert want[0].endswith("2 of 2 sessions take their scheme or setup from a sidecar")
     assert r.stderr.splitlines()[1:3] == [f"batch: {line}" for line in want]
+
+
+def test_detect_verbose_line_is_the_librarys():
+    r = ok(run(["detect", WAV, "-v", "--detector", "xcorr", "--expected", 2]))
+    assert _first(r) == "rangekit: detect: " + notes.detect_detail("xcorr", expected=2)
+    assert _first(r) == "rangekit: detect: the beep by xcorr, at most 2 per channel"

@@ -234,3 +234,11 @@ def test_batch_details():
     assert notes.batch_details(opts, [], "r.csv")[0].startswith(
         "scheme oneway, probe (--template);"
     )
+
+
+def test_detect_detail():
+    assert notes.detect_detail("changepoint") == "the beep by changepoint"
+    assert notes.detect_detail("xcorr", expected=2) == "the beep by xcorr, at most 2 per channel"
+    assert notes.detect_detail("template", template="sweep.wav", expected=3) == (
+        "template 'sweep.wav' by template, at most 3 per channel"
+    )
