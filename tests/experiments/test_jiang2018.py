@@ -2,11 +2,17 @@
 
 from __future__ import annotations
 
+import sys
+from pathlib import Path
+
 import numpy as np
 import pytest
 
 from rangekit.errors import InvalidParameterError
 from rangekit.experiments.jiang2018 import CONDITIONS, PAPER_TABLE1, run
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+from perturb import worse  # tests/perturb.py: errors x $RANGEKIT_TEST_WORSE
 
 
 @pytest.fixture(scope="module")
@@ -27,7 +33,7 @@ def test_every_table1_cell_is_reported_with_the_papers_number(report):
 
 def test_target_1_follows_the_fix_and_smoothing_beats_filtering(report):
     for cond in CONDITIONS:
-        t1 = report.find("median error", f"target 1, {cond.label}, filter").measured
+        t1 = worse(report.find("median error", f"target 1, {cond.label}, filter").measured)
         assert t1 < 0.3  # followed target: fix sigma 0.1 m + robot 0.06-0.10 m
     f = [report.find("median error", f"target 2, {c.label}, filter").measured for c in CONDITIONS]
     s = [report.find("median error", f"target 2, {c.label}, smoother").measured for c in CONDITIONS]

@@ -3,12 +3,17 @@
 from __future__ import annotations
 
 import json
+import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
 
 from rangekit.experiments import kim2013
 from rangekit.experiments.kim2013 import PAPER_TABLE_II, pose_errors
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+from perturb import worse  # tests/perturb.py: errors x $RANGEKIT_TEST_WORSE
 
 
 @pytest.fixture(scope="module")
@@ -23,9 +28,9 @@ def test_table_ii_acceptance(report, traj):
     by = {r.metric: r for r in rows if "(UHL)" not in r.condition}
     duhl = by["E_p RMS, DUHL (oracle start)"]
     assert duhl.paper == PAPER_TABLE_II[traj]["duhl"][0]
-    assert duhl.measured <= duhl.paper
+    assert worse(duhl.measured) <= duhl.paper
     assert by["E_p RMS ratio, UHL-last-2 / DUHL (oracle start)"].measured >= 3.0
-    assert by["E_phi RMS, DUHL (oracle start)"].measured < 5.0
+    assert worse(by["E_phi RMS, DUHL (oracle start)"].measured) < 5.0
     assert by["E_p RMS, tightly coupled EKF (oracle start)"].measured < duhl.measured
     assert 1.5 < by["NEES mean, tightly coupled EKF (oracle start)"].measured < 6.0
     t = by["time per step, DUHL (one distance row + its odometry steps)"]
@@ -63,8 +68,8 @@ def test_model_mismatch_rows(report, traj):
     ok = {r.metric: r for r in rows if r.condition.endswith("(UHL)")}
     assert len(mis) == 6 and all(r.paper is None for r in mis.values())
     e_ok, e_mis, nees = _MEASURED_MISMATCH[traj]
-    assert e_ok / 2 < ok["E_p RMS, DUHL"].measured < 2 * e_ok
-    assert e_mis / 2 < mis["E_p RMS, DUHL"].measured < 2 * e_mis
+    assert e_ok / 2 < worse(ok["E_p RMS, DUHL"].measured) < 2 * e_ok
+    assert e_mis / 2 < worse(mis["E_p RMS, DUHL"].measured) < 2 * e_mis
     assert mis["E_p RMS, DUHL"].measured > 1.5 * ok["E_p RMS, DUHL"].measured  # 2.1-4.9x
     assert nees / 2 < mis["NEES mean, tightly coupled EKF"].measured < 2 * nees
     assert 1.5 < ok["NEES mean, tightly coupled EKF"].measured < 6.0  # 2.85-2.94 in model
