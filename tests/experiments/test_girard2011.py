@@ -12,6 +12,8 @@ from __future__ import annotations
 
 import inspect
 import json
+import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -30,6 +32,9 @@ from rangekit.experiments.girard2011 import (
     walks,
 )
 from rangekit.localize.particle import ParticleConfig
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+from perturb import worse  # tests/perturb.py: errors x $RANGEKIT_TEST_WORSE
 
 TEST_SEED = 1
 TEST_TRIALS = 10
@@ -88,12 +93,12 @@ def test_every_table1_cell_within_2x_of_today(report, method):
             if stat == "Min":  # the best of 52 steps, 1-4 cm: not an accuracy claim
                 assert 0.0 < row.measured <= row.paper * 10
             else:
-                assert row.measured <= 2.0 * measured[stat], (mode, stat)
+                assert worse(row.measured) <= 2.0 * measured[stat], (mode, stat)
 
 
 def test_acceptance_girard_ranging_mu_and_ordering(report):
     """Girard with ranging μ <= 0.13 m (paper 0.13); IMU only > with model > with ranging."""
-    imu, model, ranging = (_mu(report, m) for m in ("imu", "model", "ranging"))
+    imu, model, ranging = (worse(_mu(report, m)) for m in ("imu", "model", "ranging"))
     assert ranging <= 0.13  # measured 0.120 (tuning seed 0: 0.111)
     assert imu > model > ranging
     cond = "Girard ν=150"
@@ -103,7 +108,7 @@ def test_acceptance_girard_ranging_mu_and_ordering(report):
 
 
 def test_sir_ranging_mu_and_ordering(report):
-    imu, model, ranging = (_mu(report, m, "SIR") for m in ("imu", "model", "ranging"))
+    imu, model, ranging = (worse(_mu(report, m, "SIR")) for m in ("imu", "model", "ranging"))
     assert ranging <= 0.16  # measured 0.135 (tuning seed 0: 0.111)
     assert imu > model > ranging
     cond = "SIR ν=150"
@@ -126,9 +131,9 @@ def test_start_given_within_half_a_metre(report, method, measured):
     """The non-oracle rows: the user gives the start only within 0.5 m."""
     row = report.find("tracking error μ", f"with ranging, {method} ν=150, start within 0.5 m")
     assert row.oracle == "" and row.paper == 0.13
-    assert row.measured <= 1.5 * measured  # measured: the parameter
+    assert worse(row.measured) <= 1.5 * measured  # measured: the parameter
     # not much better than from the true start (measured: +0.013 Girard, -0.006 SIR)
-    assert row.measured >= _mu(report, "ranging", method) - 0.02
+    assert worse(row.measured) >= worse(_mu(report, "ranging", method)) - 0.02
 
 
 @pytest.mark.parametrize(("method", "measured"), [("Girard", 0.265), ("SIR", 0.306)])
@@ -138,7 +143,7 @@ def test_model_mismatch_rows(sweep, method, measured):
     mis = f"with ranging, {method} ν=150, start within 0.5 m, {girard2011._MISMATCH_LABEL}"
     row = sweep.find("tracking error μ", mis)
     assert row.oracle == "" and row.paper is None
-    assert measured / 2 < row.measured < 2 * measured
+    assert measured / 2 < worse(row.measured) < 2 * measured
     ok = sweep.find("tracking error μ", f"with ranging, {method} ν=150, start within 0.5 m")
     assert row.measured > 1.5 * ok.measured  # measured 2.3x (Girard), 2.8x (SIR)
     reinit = f"with ranging, ν=150, {girard2011._MISMATCH_LABEL}"
@@ -156,9 +161,9 @@ def test_mismatch_walks_state_the_compass_the_user_believes():
 
 def test_sweep_nu_1000(sweep):
     for method in ("Girard", "SIR"):
-        assert _mu(sweep, "ranging", method, 1000) <= 0.13  # measured 0.107, 0.086 (2 walks)
+        assert worse(_mu(sweep, "ranging", method, 1000)) <= 0.13  # measured 0.107, 0.086
         row = sweep.find("tracking error Max (oracle start)", f"with ranging, {method} ν=1000")
-        assert row.paper == 0.40 and row.measured <= 0.66  # measured 0.328, 0.355
+        assert row.paper == 0.40 and worse(row.measured) <= 0.66  # measured 0.328, 0.355
 
 
 def test_statistics_are_consistent(report):
@@ -181,7 +186,7 @@ def test_statistics_are_consistent(report):
     ],
 )
 def test_cloud_spread_against_the_error_two_sided(report, cond, lo, hi):
-    r = report.find("RMS error / RMS cloud spread (oracle start)", cond).measured
+    r = worse(report.find("RMS error / RMS cloud spread (oracle start)", cond).measured)
     assert lo <= r <= hi
 
 
