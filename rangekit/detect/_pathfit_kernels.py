@@ -20,14 +20,14 @@ compiled loop, and :func:`_lm_step_py` a Levenberg-Marquardt iteration's linear 
 
 The numpy code of :func:`rangekit.detect.pathfit._evaluate_np` and
 :func:`rangekit.detect.pathfit._lm_step_np` is the reference (used
-when numba is not loaded, and tested against this kernel in
+for shorter recordings, and tested against this kernel in
 ``tests/detect/test_pathfit_kernels.py``); the two agree to rounding (sums in another
 order, Cholesky against LU).
 
-Import cost: numba is imported on first use only, and the fit uses the kernel only when
-numba is already imported (the one-way pipeline's long recordings import it for the
-matched filter and detection kernels), so a short file pays neither the import nor the
-cache load.
+Import cost: numba is imported on first use only, and the fit uses the kernel only for
+recordings of ``pathfit.KERNEL_MIN_SAMPLES`` or more (``pathfit.kernel_by_length`` on the
+channel fits), so a short file pays neither the import nor the cache load, and the same
+recording gives the same numbers whatever the process imported before.
 """
 
 from __future__ import annotations

@@ -68,7 +68,7 @@ import numpy as np
 
 from rangekit import _validate as V
 from rangekit.detect import matched as M
-from rangekit.detect.pathfit import PathFit, fit_arrival, pool_fits
+from rangekit.detect.pathfit import PathFit, fit_arrival, kernel_by_length, pool_fits
 from rangekit.errors import InvalidParameterError
 from rangekit.types import Arrivals, flag_bit
 
@@ -257,6 +257,7 @@ class ChannelFit:
     spread: dict = field(default_factory=dict)
 
 
+@kernel_by_length
 def fit_channel(
     x: np.ndarray,
     *,

@@ -51,6 +51,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from rangekit import _validate as V
+from rangekit.detect.pathfit import kernel_by_length
 from rangekit.errors import InvalidParameterError
 from rangekit.signals.barker import CodedBurst, burst_waveform, check_burst_fits
 from rangekit.signals.spectrum import rms_bandwidth_hz
@@ -1353,6 +1354,7 @@ def _window_spans(windows, n, lo, hi, m):
     return np.array(out, dtype=np.int64).reshape(-1, 2)
 
 
+@kernel_by_length
 def detect_matched(
     x: np.ndarray,
     *,

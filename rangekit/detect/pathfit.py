@@ -55,14 +55,17 @@ Examples
 
 from __future__ import annotations
 
+import contextlib
+import contextvars
 import functools
 import math
-import sys
+from collections.abc import Iterator
 from dataclasses import dataclass
 
 import numpy as np
 
 from rangekit import _validate as V
+from rangekit.detect._kernels import NUMBA_MIN_SAMPLES
 from rangekit.signals.barker import CodedBurst, burst_waveform
 
 __all__ = [
@@ -517,14 +520,51 @@ def _evaluate(x: np.ndarray, model, u: np.ndarray, theta: np.ndarray, with_theta
 
 
 def _use_kernel(x: np.ndarray) -> bool:
-    """Whether :func:`_evaluate` runs the compiled step: numba already imported (by the
-    one-way pipeline's matched filter on a long recording: no import for a short one),
+    """Whether :func:`_evaluate` runs the compiled step: asked for by the caller
+    (:func:`compiled_step`, which the channel fits set from the recording's length),
     ``x`` contiguous float64, and not disabled (``USE_KERNEL``)."""
-    return USE_KERNEL and "numba" in sys.modules and x.dtype == np.float64 and x.flags.c_contiguous
+    return USE_KERNEL and _KERNEL.get() and x.dtype == np.float64 and x.flags.c_contiguous
 
 
-#: Run the compiled step (:mod:`rangekit.detect._pathfit_kernels`) where numba is loaded.
+#: Run the compiled step (:mod:`rangekit.detect._pathfit_kernels`) where it is asked for.
 USE_KERNEL = True
+#: Whether the fits in this context run the compiled step (:func:`compiled_step`).
+_KERNEL: contextvars.ContextVar[bool] = contextvars.ContextVar("pathfit_kernel", default=False)
+#: A recording this long or longer has its fits run the compiled step
+#: (:func:`kernel_by_length`): the detectors' rule (``_kernels.NUMBA_MIN_SAMPLES``), so a
+#: short file pays neither numba's import nor its cache load, and a recording gives the
+#: same numbers whatever the process imported before (the step agrees with the numpy
+#: reference to rounding only; before, it ran whenever numba happened to be imported).
+KERNEL_MIN_SAMPLES = NUMBA_MIN_SAMPLES
+
+
+@contextlib.contextmanager
+def compiled_step(on: bool) -> Iterator[None]:
+    """Within the block, the fits run the compiled step (``on``) or the numpy one.
+
+    Examples
+    --------
+    >>> with compiled_step(False):
+    ...     _use_kernel(np.zeros(4))
+    False
+    """
+    token = _KERNEL.set(bool(on))
+    try:
+        yield
+    finally:
+        _KERNEL.reset(token)
+
+
+def kernel_by_length(fn):
+    """Decorate a function of a recording ``x`` (its first argument): its fits run the
+    compiled step when ``len(x) >= KERNEL_MIN_SAMPLES`` (:func:`compiled_step`)."""
+
+    @functools.wraps(fn)
+    def wrapper(x, *args, **kwargs):
+        with compiled_step(len(x) >= KERNEL_MIN_SAMPLES):
+            return fn(x, *args, **kwargs)
+
+    return wrapper
 
 
 def _evaluate_np(x: np.ndarray, rows: np.ndarray, u, theta, with_theta: bool) -> _State:

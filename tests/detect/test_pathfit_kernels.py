@@ -87,10 +87,37 @@ def test_fit_with_and_without_the_kernels_agrees_to_rounding(hold, monkeypatch):
     fits = []
     for use in (True, False):
         monkeypatch.setattr(P, "USE_KERNEL", use)
-        fits.append(P.fit_arrival(x, 600.0, model=model, sigma=0.01, theta=th, hold=hold))
+        with P.compiled_step(True):
+            fits.append(P.fit_arrival(x, 600.0, model=model, sigma=0.01, theta=th, hold=hold))
     a, b = fits
     assert a.n_paths == b.n_paths == 2
     # measured: onsets equal to 3e-12 samples, sigma to 1e-15 relative
     np.testing.assert_allclose(a.onsets, b.onsets, rtol=0, atol=1e-8)
     assert a.sigma == pytest.approx(b.sigma, rel=1e-8)
     assert a.q == pytest.approx(b.q, rel=1e-8)
+
+
+def test_the_compiled_step_runs_by_the_recording_length_not_the_imports():
+    """Which step a fit runs is the caller's (``compiled_step``, set by the channel fits
+    from the recording's length), never whether numba happens to be imported: the same
+    recording gives the same bits in any process."""
+    import numba  # noqa: F401  (imported: it must not matter)
+
+    x = np.zeros(64)
+    assert not P._use_kernel(x)
+    with P.compiled_step(True):
+        assert P._use_kernel(x)
+        with P.compiled_step(False):
+            assert not P._use_kernel(x)
+        assert P._use_kernel(x)
+    assert not P._use_kernel(x)
+
+    seen = []
+
+    @P.kernel_by_length
+    def probe(y):
+        seen.append(P._use_kernel(np.zeros(4)))
+
+    probe(np.zeros(P.KERNEL_MIN_SAMPLES - 1))
+    probe(np.zeros(P.KERNEL_MIN_SAMPLES))
+    assert seen == [False, True]
