@@ -212,8 +212,8 @@ def design_sweep(f0, f1, duration, fs, fade, amplitude, output):
     try:
         d = design_sweep(f0, f1, duration, fs=fs, fade_s=fade, amplitude=amplitude, names=NAMES)
     except SweepError as e:  # the library's check, as a usage error naming the options
-        if e.parameter is None:
+        if e.param is None:
             raise click.UsageError(e.reason) from None
-        raise click.BadParameter(e.reason, param_hint=e.parameter) from None
+        raise click.BadParameter(e.reason, param_hint=e.param) from None
     d.write(output)
     note(sweep_note(output, d.signal, f0_hz=f0, f1_hz=f1, duration_s=duration, fade_s=fade))

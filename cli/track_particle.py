@@ -144,7 +144,7 @@ def particle_cmd(log, steps, map_path, ranges, start, method, mode, particles, m
     try:
         config = ParticleConfig(**cfg)  # the options (exit 2)
     except InvalidParameterError as e:
-        if "n_particles" not in str(e):
+        if e.param != "n_particles":
             raise
         raise click.BadParameter(str(e), param_hint="--particles") from None
     if rig is not None:  # and how they fit the rig (exit 5, IncompatibleInputError)

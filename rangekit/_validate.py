@@ -16,28 +16,28 @@ from rangekit.errors import InvalidParameterError
 def positive(name: str, value: float, *, allow_zero: bool = False) -> float:
     """Return ``value`` as float, or raise if it is not finite and > 0 (>= 0)."""
     if isinstance(value, (bool, str)):
-        raise InvalidParameterError(f"{name}={value!r} must be a number")
+        raise InvalidParameterError(f"{name}={value!r} must be a number", param=name)
     try:
         v = float(value)
     except (TypeError, ValueError, OverflowError):
-        raise InvalidParameterError(f"{name}={value!r} must be a number") from None
+        raise InvalidParameterError(f"{name}={value!r} must be a number", param=name) from None
     ok = math.isfinite(v) and (v >= 0.0 if allow_zero else v > 0.0)
     if not ok:
         bound = ">= 0" if allow_zero else "> 0"
-        raise InvalidParameterError(f"{name}={value!r} must be finite and {bound}")
+        raise InvalidParameterError(f"{name}={value!r} must be finite and {bound}", param=name)
     return v
 
 
 def in_range(name: str, value: float, lo: float, hi: float) -> float:
     """Return ``value`` as float, or raise if it is not within [lo, hi]."""
     if isinstance(value, (bool, str)):
-        raise InvalidParameterError(f"{name}={value!r} must be a number")
+        raise InvalidParameterError(f"{name}={value!r} must be a number", param=name)
     try:
         v = float(value)
     except (TypeError, ValueError, OverflowError):
-        raise InvalidParameterError(f"{name}={value!r} must be a number") from None
+        raise InvalidParameterError(f"{name}={value!r} must be a number", param=name) from None
     if not (math.isfinite(v) and lo <= v <= hi):
-        raise InvalidParameterError(f"{name}={value!r} must be within [{lo}, {hi}]")
+        raise InvalidParameterError(f"{name}={value!r} must be within [{lo}, {hi}]", param=name)
     return v
 
 
@@ -47,9 +47,9 @@ def positive_int(name: str, value: int, *, minimum: int = 1) -> int:
         if isinstance(value, float) and value.is_integer():
             value = int(value)
         else:
-            raise InvalidParameterError(f"{name}={value!r} must be an integer")
+            raise InvalidParameterError(f"{name}={value!r} must be an integer", param=name)
     if value < minimum:
-        raise InvalidParameterError(f"{name}={value!r} must be >= {minimum}")
+        raise InvalidParameterError(f"{name}={value!r} must be >= {minimum}", param=name)
     return int(value)
 
 

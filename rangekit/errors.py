@@ -68,9 +68,23 @@ class RangekitError(Exception):
 
 
 class InvalidParameterError(RangekitError, ValueError):
-    """A parameter value is out of its domain (exit code 2, like a usage error)."""
+    """A parameter value is out of its domain (exit code 2, like a usage error).
+
+    ``param``: the parameter's name where one parameter is at fault (the validators of
+    :mod:`rangekit._validate` set it), so that a caller can name its own spelling of it
+    (the CLI its option) without reading the message; None otherwise.
+
+    Examples
+    --------
+    >>> InvalidParameterError("n_particles=0 must be >= 1", param="n_particles").param
+    'n_particles'
+    """
 
     exit_code = 2
+
+    def __init__(self, *args: object, param: str | None = None) -> None:
+        super().__init__(*args)
+        self.param = param
 
 
 class InputFileError(RangekitError, OSError):

@@ -60,3 +60,30 @@ def test_import_is_cheap():
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.split() == ["False", "False"]
+
+
+def test_invalid_parameter_errors_name_the_parameter():
+    """The validators put the parameter's name on the error (``param``), which callers
+    map to their own spelling (the CLI: ``--particles``) instead of reading the message."""
+    import pytest
+
+    from rangekit import _validate as V
+    from rangekit.errors import InvalidParameterError
+    from rangekit.localize.particle import MAX_PARTICLES, ParticleConfig
+
+    for call in (
+        lambda: V.positive("eps_m", -1.0),
+        lambda: V.in_range("eps_m", 2.0, 0.0, 1.0),
+        lambda: V.positive_int("eps_m", 0),
+        lambda: V.positive("eps_m", "x"),
+    ):
+        with pytest.raises(InvalidParameterError) as e:
+            call()
+        assert e.value.param == "eps_m"
+    for n in (0, MAX_PARTICLES + 1):
+        with pytest.raises(InvalidParameterError) as e:
+            ParticleConfig(n_particles=n)
+        assert e.value.param == "n_particles"
+    with pytest.raises(InvalidParameterError) as e:
+        ParticleConfig(kappa=0)
+    assert e.value.param == "kappa"

@@ -264,14 +264,16 @@ class ParticleConfig:
         if vals["n_particles"] > MAX_PARTICLES:
             raise InvalidParameterError(
                 f"n_particles={vals['n_particles']} is above the bound {MAX_PARTICLES:,} "
-                "(memory: about 110 bytes per particle)"
+                "(memory: about 110 bytes per particle)",
+                param="n_particles",
             )
         if self.method == "girard" and vals["n_particles"] * vals["kappa"] > MAX_CANDIDATES:
             raise InvalidParameterError(
                 f"n_particles * kappa = {vals['n_particles']} * {vals['kappa']} is above the "
                 f"bound {MAX_CANDIDATES:,} of method='girard' (memory: every candidate move "
                 "is held before merging, about 110 bytes each); use fewer particles or "
-                "method='sir'"
+                "method='sir'",
+                param="n_particles",
             )
         vals["sensor"] = sensor
         vals["mount_angles_rad"] = mounts

@@ -260,16 +260,15 @@ class SweepError(InvalidParameterError):
 
     Attributes
     ----------
-    parameter : str or None
+    param : str or None
         The caller's name of the argument at fault; None when two are at fault together
-        (the message names both).
+        (the message names both) (:class:`~rangekit.errors.InvalidParameterError`'s).
     reason : str
         Why, without the name of ``parameter`` (the whole message when it is None).
     """
 
-    def __init__(self, message: str, *, parameter: str | None = None, reason: str | None = None):
-        super().__init__(message)
-        self.parameter = parameter
+    def __init__(self, message: str, *, param: str | None = None, reason: str | None = None):
+        super().__init__(message, param=param)
         self.reason = message if reason is None else reason
 
 
@@ -308,7 +307,7 @@ def check_sweep(
     >>> try:
     ...     check_sweep(9000.0, 2000.0, 0.1, fs=16000.0, names={"f0_hz": "--f0", "fs": "--fs"})
     ... except SweepError as e:
-    ...     print(e.parameter, "|", e.reason)
+    ...     print(e.param, "|", e.reason)
     --f0 | 9000 Hz is not below the Nyquist frequency 8000 Hz of --fs 16000
     """
     n = {k: k for k in ("f0_hz", "f1_hz", "duration_s", "fs", "fade_s")}
@@ -320,7 +319,7 @@ def check_sweep(
     def fail(key: str, value: str, why: str):
         if names is None:
             return InvalidParameterError(f"{ref(key, value)} {why}")
-        return SweepError(f"{n[key]}: {value} {why}", parameter=n[key], reason=f"{value} {why}")
+        return SweepError(f"{n[key]}: {value} {why}", param=n[key], reason=f"{value} {why}")
 
     fs = V.sample_rate(fs)
     f0 = V.positive("f0_hz", f0_hz, allow_zero=True)

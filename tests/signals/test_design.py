@@ -105,7 +105,7 @@ def test_messages_in_the_callers_names(args, want):
     for call in (check_sweep, design_sweep):
         with pytest.raises(SweepError) as e:
             call(f0, f1, dur, fs=fs, fade_s=fade, names=NAMES)
-        assert (e.value.parameter, e.value.reason) == want
+        assert (e.value.param, e.value.reason) == want
         assert e.value.exit_code == 2
 
 
