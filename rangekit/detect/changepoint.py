@@ -1245,11 +1245,12 @@ def precursor_ratio(
     phase (Kay 1998, §7.6): a direct path 20 dB under a reflection 80 samples later, at
     peak 0.05 in white noise of 0.05, stands about 10 dB over noise in a 56-sample window
     where the band energy of a frame rises 2 dB. The Hann window is the band-limiting:
-    its side lobes 8 kHz or more from the tone are 70 dB down (DC, hum and the speech band
-    do not reach it). The smallest over the bursts, because an echo of burst ``k - 1`` can
-    precede burst ``k`` but nothing of the beep precedes its first burst (measured on the
-    pyroomacoustics corpus: without the first burst the smallest of the other three
-    reached 20 on correct arrivals).
+    its side lobes 8 kHz or more from the tone are about 45 dB down for 24 samples and 70
+    dB for 56 (DC, hum and the speech band do not reach it; the impaired corpus, speech
+    and music 10 dB over the far beep, did not raise it). The smallest over the bursts,
+    because an echo of burst ``k - 1`` can precede burst ``k`` but nothing of the beep
+    precedes its first burst (measured on the pyroomacoustics corpus: without the first
+    burst the smallest of the other three reached 20 on correct arrivals).
 
     Examples
     --------
