@@ -1301,27 +1301,40 @@ def precursor_ratio(
     return out
 
 
-def _precursor_flags(arr: Arrivals, cond: _Conditioner, *, fs: float, beep: Beep) -> Arrivals:
-    """``arr`` with ``ambiguous_first_path`` added where the beep's tone stands
+def precursor_hits(
+    x: np.ndarray,
+    onsets: np.ndarray,
+    *,
+    fs: float,
+    beep: Beep,
+    clipped: np.ndarray | None = None,
+) -> np.ndarray:
+    """Which beeps of onsets ``onsets`` (samples, one per beep) have the beep's tone
     ``PRE_TONE_RATIO`` over its level before, just before every burst
     (:func:`precursor_ratio`, windows of ``PRE_TONE_S``): sound of the beep arrived
     before the chosen onset, within a few windows (a direct path too weak to time, 20
     dB under a reflection 0.7-3 ms later, or a pulse). Tested on beeps of three bursts or
     more whose every burst's window lies in the recording (one burst alone is
-    exponential: e^-4 = 2 % of noise passes)."""
-    if beep.n_bursts < 3 or len(arr) == 0:
-        return arr
+    exponential: e^-4 = 2 % of noise passes); ``clipped``: the recording's clip mask."""
+    onsets = np.asarray(onsets, dtype=np.float64)
+    hit = np.zeros(len(onsets), dtype=bool)
+    if beep.n_bursts < 3 or len(onsets) == 0:
+        return hit
     guard = int(round(PRE_GUARD_S * fs))
-    on = arr.onset[:, None] + beep.spacing_s * fs * np.arange(beep.n_bursts)
+    on = onsets[:, None] + beep.spacing_s * fs * np.arange(beep.n_bursts)
     lengths = tuple(max(guard + 4, int(round(v * fs))) for v in PRE_TONE_S)
-    kw = {"fs": fs, "f_hz": beep.f_hz, "lengths": lengths, "guard": guard}
+    kw = {"fs": fs, "f_hz": beep.f_hz, "lengths": lengths, "guard": guard, "clipped": clipped}
     # The smallest over the bursts reaches the ratio only if the first burst does (2 % of
     # noise): the other bursts are read for those beeps alone.
-    first = precursor_ratio(cond.x, on[:, :1], clipped=cond.clipped, **kw)
-    hit = np.any(first >= PRE_TONE_RATIO, axis=1)  # NaN: not tested
+    hit = np.any(precursor_ratio(x, on[:, :1], **kw) >= PRE_TONE_RATIO, axis=1)  # NaN: no
     if np.any(hit):
-        r = precursor_ratio(cond.x, on[hit], clipped=cond.clipped, **kw)
-        hit[hit] = np.any(r >= PRE_TONE_RATIO, axis=1)
+        hit[hit] = np.any(precursor_ratio(x, on[hit], **kw) >= PRE_TONE_RATIO, axis=1)
+    return hit
+
+
+def _precursor_flags(arr: Arrivals, cond: _Conditioner, *, fs: float, beep: Beep) -> Arrivals:
+    """``arr`` with ``ambiguous_first_path`` added where :func:`precursor_hits`."""
+    hit = precursor_hits(cond.x, arr.onset, fs=fs, beep=beep, clipped=cond.clipped)
     bit = flag_bit("ambiguous_first_path")
     return replace(arr, flags=np.where(hit, arr.flags | bit, arr.flags))
 

@@ -27,7 +27,7 @@ import numpy as np
 
 from rangekit import _validate as V
 from rangekit.signals.beep import Beep, beep_continuous_analytic, check_beep_fits
-from rangekit.types import Arrivals
+from rangekit.types import Arrivals, flag_bit
 
 __all__ = ["detect_xcorr"]
 
@@ -147,17 +147,28 @@ def detect_xcorr(
 
 def _flags(x: np.ndarray, onsets: np.ndarray, *, fs: float, beep: Beep) -> np.ndarray:
     """``ambiguous_first_path`` / ``reverb_limited`` from the band energy before each
-    onset (as for the change-point detector): the strongest correlation peak in a room is
-    often a reflection, and the direct sound then shows before it."""
+    onset, and the tone precursor test (as for the change-point detector): the strongest
+    correlation peak in a room is often a reflection, and the direct sound then shows
+    before it."""
     from rangekit.detect._kernels import band_energy
-    from rangekit.detect.changepoint import HOP_S, WIN_S, _before_onset_flags, _stft_params
+    from rangekit.detect.changepoint import (
+        HOP_S,
+        WIN_S,
+        _before_onset_flags,
+        _stft_params,
+        precursor_hits,
+    )
+    from rangekit.detect.condition import clip_mask
 
     n_win, hop = _stft_params(fs, WIN_S, HOP_S)
     e = band_energy(x, fs=fs, f_hz=np.array([beep.f_hz]), n_win=n_win, hop=hop)
-    return np.array(
+    flags = np.array(
         [_before_onset_flags(e, t, hop=hop, n_win=n_win, fs=fs, quiet=0.0) for t in onsets],
         dtype=np.int64,
     )
+    clipped = clip_mask(x)
+    hit = precursor_hits(x, onsets, fs=fs, beep=beep, clipped=clipped if clipped.any() else None)
+    return np.where(hit, flags | flag_bit("ambiguous_first_path"), flags)
 
 
 def _burst_confidence(x: np.ndarray, bursts: np.ndarray, *, fs: float, beep: Beep) -> np.ndarray:
