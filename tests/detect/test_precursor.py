@@ -187,3 +187,17 @@ def test_the_xcorr_detector_flags_the_same_precursor():
         arr = detect_xcorr(_nlos(0.02, seed, lag=40.0), fs=FS, beep=B)
         assert abs(arr.onset[0] - 20041.0) < 2.0  # on the reflection
         assert "ambiguous_first_path" in arr.flag_names(0), seed
+
+
+def test_bridge_equals_interp_over_every_other_sample():
+    """``changepoint.bridge`` (the click bridging) gives exactly what ``np.interp`` over
+    all unclicked samples gives: runs in the middle, at either end, next to each other,
+    everything clicked (0); 2000 random cases."""
+    rng = np.random.default_rng(7)
+    for _ in range(2000):
+        n = int(rng.integers(1, 60))
+        x = rng.standard_normal(n)
+        m = rng.random(n) < rng.uniform(0.0, 1.0)
+        idx, keep = np.flatnonzero(m), np.flatnonzero(~m)
+        want = np.interp(idx, keep, x[keep]) if len(keep) else np.zeros(len(idx))
+        assert np.array_equal(cp.bridge(x, idx), want)
