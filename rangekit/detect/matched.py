@@ -51,7 +51,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from rangekit import _validate as V
-from rangekit.detect.pathfit import kernel_by_length
+from rangekit.detect._kernel_choice import kernel_by_length
 from rangekit.errors import InvalidParameterError
 from rangekit.signals.barker import CodedBurst, burst_waveform, check_burst_fits
 from rangekit.signals.spectrum import rms_bandwidth_hz

@@ -55,17 +55,19 @@ Examples
 
 from __future__ import annotations
 
-import contextlib
-import contextvars
 import functools
 import math
-from collections.abc import Iterator
 from dataclasses import dataclass
 
 import numpy as np
 
 from rangekit import _validate as V
-from rangekit.detect._kernels import NUMBA_MIN_SAMPLES
+from rangekit.detect._kernel_choice import (  # noqa: F401  (re-exported)
+    _KERNEL,
+    KERNEL_MIN_SAMPLES,
+    compiled_step,
+    kernel_by_length,
+)
 from rangekit.signals.barker import CodedBurst, burst_waveform
 
 __all__ = [
@@ -528,43 +530,6 @@ def _use_kernel(x: np.ndarray) -> bool:
 
 #: Run the compiled step (:mod:`rangekit.detect._pathfit_kernels`) where it is asked for.
 USE_KERNEL = True
-#: Whether the fits in this context run the compiled step (:func:`compiled_step`).
-_KERNEL: contextvars.ContextVar[bool] = contextvars.ContextVar("pathfit_kernel", default=False)
-#: A recording this long or longer has its fits run the compiled step
-#: (:func:`kernel_by_length`): the detectors' rule (``_kernels.NUMBA_MIN_SAMPLES``), so a
-#: short file pays neither numba's import nor its cache load, and a recording gives the
-#: same numbers whatever the process imported before (the step agrees with the numpy
-#: reference to rounding only; before, it ran whenever numba happened to be imported).
-KERNEL_MIN_SAMPLES = NUMBA_MIN_SAMPLES
-
-
-@contextlib.contextmanager
-def compiled_step(on: bool) -> Iterator[None]:
-    """Within the block, the fits run the compiled step (``on``) or the numpy one.
-
-    Examples
-    --------
-    >>> with compiled_step(False):
-    ...     _use_kernel(np.zeros(4))
-    False
-    """
-    token = _KERNEL.set(bool(on))
-    try:
-        yield
-    finally:
-        _KERNEL.reset(token)
-
-
-def kernel_by_length(fn):
-    """Decorate a function of a recording ``x`` (its first argument): its fits run the
-    compiled step when ``len(x) >= KERNEL_MIN_SAMPLES`` (:func:`compiled_step`)."""
-
-    @functools.wraps(fn)
-    def wrapper(x, *args, **kwargs):
-        with compiled_step(len(x) >= KERNEL_MIN_SAMPLES):
-            return fn(x, *args, **kwargs)
-
-    return wrapper
 
 
 def _evaluate_np(x: np.ndarray, rows: np.ndarray, u, theta, with_theta: bool) -> _State:
