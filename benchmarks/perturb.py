@@ -17,7 +17,7 @@ The verdict is ``PASS`` when every perturbed test passes (or xfails) at 1x and f
 factor; the exit status is 1 when a perturbed test passes at the factor (its bounds cannot
 see a 3x regression) or fails at 1x (the check means nothing then), else 0.
 
-Not part of CI: it runs the harnesses once or twice (about 20 minutes in all here). Run it
+Not part of CI: it runs every harness file twice (about 6.5 minutes here). Run it
 niced on shared machines (it lowers its own priority by 10)::
 
     python benchmarks/perturb.py                      # every harness file, 1x and 3x
