@@ -45,3 +45,28 @@ def test_help_imports_no_command_module_and_no_numpy():
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert "Commands:" in out.stdout and "range " in out.stdout
     assert out.stdout.rstrip().endswith("IMPORTED []"), out.stdout[-300:]
+
+
+def test_a_beep_range_imports_no_transducer_fit_nor_numba():
+    """``rangekit range`` of the beep fixture (a few seconds of audio) needs neither the
+    one-way transducer fit (``rangekit.detect.pathfit``, which imports ``scipy.fft``:
+    ~0.18 s, once imported by ``matched`` for a decorator) nor numba (short inputs take
+    the numpy paths)."""
+    from pathlib import Path
+
+    fixture = Path(__file__).resolve().parents[2] / "fixtures_audio" / "beepbeep_2p5m.wav"
+    code = (
+        "import sys\n"
+        "from rangekit_cli.main import cli\n"
+        "try:\n"
+        f"    cli.main(['range', {str(fixture)!r}, '--self-distance', '0.1'],\n"
+        "             prog_name='rangekit')\n"
+        "except SystemExit:\n"
+        "    pass\n"
+        "bad = [m for m in sys.modules if m.startswith(('numba', 'scipy.fft', 'scipy.signal'))\n"
+        "       or m == 'rangekit.detect.pathfit']\n"
+        "print('IMPORTED', sorted(bad))\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert "2.5" in out.stdout  # the range was printed (the fixture is 2.5 m)
+    assert out.stdout.rstrip().endswith("IMPORTED []"), out.stdout[-400:]
