@@ -72,6 +72,8 @@ TESTS: dict[str, tuple[str, ...]] = {
     "rangekit/detect/changepoint.py": (
         "tests/detect/test_changepoint.py",
         "tests/detect/test_changepoint_mutation.py",
+        "tests/detect/test_changepoint_mutation2.py",
+        "tests/detect/test_precursor.py",
         "tests/detect/test_edge_kernels.py",
     ),
     "rangekit/detect/_kernels.py": ("tests/detect/test_kernels.py",),
@@ -143,6 +145,20 @@ TESTS: dict[str, tuple[str, ...]] = {
 #: right (:func:`site_key`). The summary reports the score with these set apart beside the
 #: plain score (which counts them as survivors).
 EQUIVALENT: dict[str, dict[tuple, str]] = {
+    "rangekit/detect/changepoint.py": {
+        ("tw = min(1500.0, 0.5 * lo, max(nyq - hi, 0.01 * nyq))", "* -> /", 1):
+            "hi <= 0.98 nyq, so nyq - hi >= 0.02 nyq exceeds 0.01 nyq and 0.01 / nyq: the max",
+        ("compiled = len(x) >= _edge_kernels.NUMBA_MIN_SAMPLES", ">= -> >"):
+            "which path at exactly NUMBA_MIN_SAMPLES: both give the same numbers (tested equal)",
+        ("if lv is None or ref is None or not max(lv) >= MASK_RATIO * ref[0]:", ">= -> >"):
+            "a tie of two mean band energies (floats) at exactly MASK_RATIO, never met",
+        ("out = np.zeros((n_a + 1, 7))", "1 -> 2"):
+            "one row per anchor at most and rows read up to n_rows: a spare row, never read",
+        ("a = a.astype(np.float64, copy=False)  # short: the numpy path, in float64",
+         "False -> True"): "a copy of the same values (nothing writes into the samples)",
+        ("if end - 2 * near < 0 or last - n_last + 1 < 0 or last >= len(e):", "< -> <=", 1):
+            "at last = n_last - 1 (7 frames) end <= last + 1 < 2 near (68): skipped already",
+    },
     "rangekit/detect/condition.py": {
         ("low_pass_only = False", "False -> True"): "only `width` reads it, `tw` either way",
         ("low_pass_only = lo - tw <= 0.0", "<= -> <"):
