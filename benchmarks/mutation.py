@@ -237,8 +237,8 @@ EQUIVALENT: dict[str, dict[tuple, str]] = {
          "is not -> is"): "scipy.fft.ifft instead: the same pocketfft call, bit-identical",
         ("return 1 << max(4, int(math.ceil(math.log2(max(n, 1)))))", "1 -> 2", 1):
             "the grid size n is always above 2",
-        ('return USE_KERNEL and "numba" in sys.modules and x.dtype == np.float64 and '
-         "x.flags.c_contiguous", "== -> !="):
+        ("return USE_KERNEL and _KERNEL.get() and x.dtype == np.float64 and x.flags.c_contiguous",
+         "== -> !="):
             "the numpy reference instead of the compiled step: equal to 1e-15 "
             "(test_pathfit_kernels.py)",
         ("if nb > 2:", "> -> >="): "at nb == 2 the theta block has no columns: an empty assignment",

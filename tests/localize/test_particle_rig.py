@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from rangekit.errors import InvalidParameterError
+from rangekit.errors import IncompatibleInputError, InvalidParameterError
 from rangekit.floorplan import FloorPlan
 from rangekit.io.steplog import RangeLog, StepLog
 from rangekit.localize import particle as P
@@ -55,7 +55,8 @@ def test_rig_config_takes_axes_and_lever_arms_from_the_tags():
     ],
 )
 def test_rig_config_refuses(tags, odometry, kw, named):
-    with pytest.raises(InvalidParameterError, match=r"rig\.json") as e:
+    # A rig that does not fit the filter: inputs each valid, not fitting together (exit 5)
+    with pytest.raises(IncompatibleInputError, match=r"rig\.json") as e:
         P.rig_config(_rig(tags, odometry), name="rig.json", **kw)
     assert named in str(e.value)
 
