@@ -158,6 +158,13 @@ EQUIVALENT: dict[str, dict[tuple, str]] = {
          "False -> True"): "a copy of the same values (nothing writes into the samples)",
         ("if end - 2 * near < 0 or last - n_last + 1 < 0 or last >= len(e):", "< -> <=", 1):
             "at last = n_last - 1 (7 frames) end <= last + 1 < 2 near (68): skipped already",
+        ("w_all = 1.0 / sg**2", "1.0 -> 2.0"):
+            "a common factor of the support weights: it cancels in their weighted means",
+        ("if snr < LOW_SNR_DB:", "< -> <="): "a median SNR (float) of exactly 10 dB, never met",
+        ("return [r for r, k in zip(rows, keep, strict=True) if k]", "True -> False"):
+            "keep is built with one entry per row: strict never raises",
+        ("half = (len(cond.taps) - 1) // 2 if cond.taps is not None else 0", "0 -> 1"):
+            "without taps the compiled loop reads no half (no band-limiting)",
     },
     "rangekit/detect/condition.py": {
         ("low_pass_only = False", "False -> True"): "only `width` reads it, `tw` either way",

@@ -139,3 +139,18 @@ def test_a_shifted_beep_is_weighed_against_the_burst_it_would_drop():
             arr = cp.detect_changepoint(_uneven_beep([0.3, 1, 1, 1, ax], seed), fs=FS, beep=Beep())
             assert len(arr) == 1 and abs(arr.onset[0] - 5000.3) < 1.0
             assert ("ambiguous_first_path" in arr.flag_names(0)) == flagged, (seed, ax)
+
+
+def test_precursor_ratio_tests_every_beep_whose_stretches_lie_in_the_recording():
+    """``precursor_ratio`` is NaN only where a window or level stretch leaves the
+    recording: the 25 ms level stretch (1102 samples) plus a 56-sample window ending 8
+    before the onset start at sample 0 for an onset at 1166 (tested), at -1 for 1165
+    (NaN); a window ending at the last sample is tested, one past it is NaN."""
+    x = 0.01 * np.random.default_rng(7).standard_normal(3000)
+
+    def ratio(on: float) -> float:
+        r = cp.precursor_ratio(x, [on], fs=FS, f_hz=16000.0, lengths=(64,), guard=8)
+        return float(r[0, 0])
+
+    assert np.isfinite(ratio(1166.0)) and np.isnan(ratio(1165.0))
+    assert np.isfinite(ratio(3008.0)) and np.isnan(ratio(3009.0))
