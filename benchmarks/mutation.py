@@ -155,7 +155,7 @@ EQUIVALENT: dict[str, dict[tuple, str]] = {
         ("out = np.zeros((n_a + 1, 7))", "1 -> 2"):
             "one row per anchor at most and rows read up to n_rows: a spare row, never read",
         ("a = a.astype(np.float64, copy=False)  # short: the numpy path, in float64",
-         "False -> True"): "a copy of the same values (nothing writes into the samples)",
+         "False -> True"): "a copy of the same values: the detection reads the same numbers",
         ("if end - 2 * near < 0 or last - n_last + 1 < 0 or last >= len(e):", "< -> <=", 1):
             "at last = n_last - 1 (7 frames) end <= last + 1 < 2 near (68): skipped already",
         ("w_all = 1.0 / sg**2", "1.0 -> 2.0"):
