@@ -51,6 +51,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from rangekit import _validate as V
+from rangekit.detect._fft import pocketfft
 from rangekit.detect._kernel_choice import kernel_by_length
 from rangekit.errors import InvalidParameterError
 from rangekit.signals.barker import CodedBurst, burst_waveform, check_burst_fits
@@ -253,22 +254,6 @@ def _check_x(name: str, x) -> np.ndarray:
     return a
 
 
-def _pocketfft():
-    """scipy's pocketfft module (what ``scipy.fft.rfft``/``irfft`` call), or None if this
-    scipy lays it out otherwise; imported on first use (start-up imports no scipy)."""
-    global _POCKET
-    if _POCKET is False:
-        try:
-            from scipy.fft._pocketfft import pypocketfft as mod
-        except ImportError:  # pragma: no cover - another scipy layout: the public calls
-            mod = None
-        _POCKET = mod
-    return _POCKET
-
-
-_POCKET = False  # not looked up yet
-
-
 def _ws_array(ws: dict, name: str, shape: tuple, dtype) -> np.ndarray:
     """An array of ``shape`` from the workspace ``ws`` (a view of its buffer ``name``,
     grown when too small; contents undefined)."""
@@ -449,7 +434,7 @@ class MatchedFilter:
         with their outputs given: the same numbers); the returned array is then the
         workspace's, overwritten by the next call with the same ``ws``.
         """
-        if ws is not None and _pocketfft() is not None:
+        if ws is not None and pocketfft() is not None:
             return self._segments_ws(x, n_out, lead, ws)
         sf, n, step = self._fft, self.n_fft, self.step
         out = np.empty(n_out, dtype=DTYPES[self.dtype][1])
@@ -468,7 +453,7 @@ class MatchedFilter:
 
     def _segments_ws(self, x: np.ndarray, n_out: int, lead: int, ws: dict) -> np.ndarray:
         """:meth:`_segments` with every array kept in ``ws`` (no fresh memory per call)."""
-        n, step, pocket = self.n_fft, self.step, _pocketfft()
+        n, step, pocket = self.n_fft, self.step, pocketfft()
         rdt, cdt = DTYPES[self.dtype]
         out = _ws_array(ws, "out", (n_out,), cdt)
         per = max(1, (1 << 18) // n)

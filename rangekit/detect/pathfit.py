@@ -62,6 +62,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from rangekit import _validate as V
+from rangekit.detect._fft import pocketfft
 from rangekit.detect._kernel_choice import (  # noqa: F401  (re-exported)
     _KERNEL,
     KERNEL_MIN_SAMPLES,
@@ -128,10 +129,9 @@ def _rfft(a, n):
     return fft.rfft(a, n=n)
 
 
-try:
-    from scipy.fft._pocketfft import pypocketfft as _POCKET
-except ImportError:  # pragma: no cover - another scipy layout: the public calls
-    _POCKET = None
+#: scipy's pocketfft (None: another scipy layout, the public calls): the fit runs only
+#: where its transforms are needed, so it is looked up when this module is imported.
+_POCKET = pocketfft()
 
 
 def _next_pow2(n: int) -> int:
