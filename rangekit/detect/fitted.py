@@ -574,10 +574,8 @@ def check_shapes(fits: Sequence[ChannelFit]) -> list[dict]:
         med = (np.median([t for t, _ in sh], axis=0), np.median([c for _, c in sh], axis=0))
         ok = [_agree(x, med) for x in sh]
         resonator = [c for c, f in enumerate(fits) if k not in f.shapes and k in f.group]
-        if all(ok) and all(_agree(a, b) for a in sh for b in sh):
-            if not resonator:
-                continue
-            ok = [True] * len(sh)
+        if not resonator and all(ok) and all(_agree(a, b) for a in sh for b in sh):
+            continue
         if sum(ok) >= 2 and sum(ok) > len(sh) / 2:
             good = [x for x, o in zip(sh, ok, strict=True) if o]
             info = sum(np.linalg.inv(c) for _, c in good)
