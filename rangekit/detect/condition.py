@@ -195,7 +195,12 @@ def bandlimit(x: np.ndarray, taps: np.ndarray) -> np.ndarray:
 
 
 def clip_mask(
-    x: np.ndarray, *, rel_tol: float = 1e-4, min_run: int = 2, min_count: int = 8
+    x: np.ndarray,
+    *,
+    rel_tol: float = 1e-4,
+    min_run: int = 2,
+    min_count: int = 8,
+    max_gap: int = 64,
 ) -> np.ndarray:
     """Boolean mask of clipped samples: runs at the recording's extreme values.
 
@@ -235,10 +240,20 @@ def clip_mask(
             continue  # digital silence at a rail is not clipping
         # a run of min_run consecutive indices among the (few) samples at the rail
         step = np.diff(idx) == 1
-        at_rail = int(np.count_nonzero(x[idx] == rail))
-        if min_run <= 1 or at_rail >= min_count or _runs_at_least(step, min_run - 1).any():
+        touches = _touches(idx[x[idx] == rail], min_count, max_gap)
+        if min_run <= 1 or touches or _runs_at_least(step, min_run - 1).any():
             mask[idx] = True
     return mask
+
+
+def _touches(at: np.ndarray, min_count: int, max_gap: int) -> bool:
+    """Whether ``min_count`` of the sorted indices ``at`` follow one another, each less
+    than ``max_gap`` after the one before (a sustained stretch of rail touches)."""
+    if len(at) < min_count:
+        return False
+    if min_count <= 1:
+        return True
+    return bool(_runs_at_least(np.diff(at) < max_gap, min_count - 1).any())
 
 
 def _threshold(t: float, dtype: np.dtype, *, up: bool):

@@ -240,6 +240,50 @@ def test_clip_mask_counts_exact_rail_touches_without_runs():
     assert not C.clip_mask(x).any()
 
 
+def test_clip_mask_touches_must_be_sustained():
+    """Touches spread out (each copy of a digitally mixed signal reaching the same exact
+    peak) are not clipping; the same touches less than max_gap apart are."""
+    for gap, clipped in ((63, True), (64, False)):
+        x = np.zeros(1000)
+        x[1::2] = -np.linspace(0.2, 0.3, 500)
+        idx = 5 + gap * np.arange(8)
+        x[idx] = 1.0
+        assert C.clip_mask(x).any() == clipped, gap
+        assert C.clip_mask(x, max_gap=gap + 1)[idx].all()
+    # 8 touches, only 7 of them in one sustained stretch
+    x[idx] = 0.0
+    idx = np.r_[5 + 10 * np.arange(7), 900]
+    x[idx] = 1.0
+    assert not C.clip_mask(x).any()
+    x[80] = 1.0  # the eighth joins the stretch
+    assert C.clip_mask(x)[idx].all()
+
+
+def test_clip_mask_lightly_clipped_sweep_and_mixed_copies():
+    fs = 44100.0
+    t = np.arange(4410) / fs
+    sweep = np.sin(2 * np.pi * (17000 * t + 0.5 * 3e4 * t * t))  # 17-20 kHz in 0.1 s
+    assert not C.clip_mask(sweep).any()
+    for db in (0.1, 1.0, 6.0):
+        c = 10 ** (-db / 20)
+        y = np.clip(sweep, -c, c)
+        m = C.clip_mask(y)
+        # every clipped sample is found (0.1 dB: 413 of them, 85 samples apart at the 99th
+        # percentile); at most a few more lie within rel_tol of the rail
+        assert m[np.abs(y) >= c].all(), db
+        assert m.sum() <= (np.abs(y) >= c).sum() + 4, db
+    # twenty identical peak-normalised bursts, 0.5 s apart: 40 exact touches of each rail
+    # (two per burst), not one sustained stretch
+    burst = np.sin(2 * np.pi * 16000 * np.arange(441) / fs) * np.hanning(441)
+    burst /= np.max(np.abs(burst))
+    x = np.zeros(int(10.5 * fs))
+    for k in range(20):
+        x[int(k * 0.5 * fs) : int(k * 0.5 * fs) + 441] += burst
+    assert np.count_nonzero(x == x.max()) >= 8
+    assert not C.clip_mask(x).any()
+    assert C.clip_mask(x, max_gap=10**9).any()  # what the rule without max_gap said
+
+
 def test_clip_mask_digital_silence_and_degenerate_input():
     # zeros at the lower rail are digital silence, not clipping (a rectified signal)
     x = np.concatenate([np.zeros(100), np.abs(_tone(400))])
