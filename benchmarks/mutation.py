@@ -273,6 +273,14 @@ EQUIVALENT: dict[str, dict[tuple, str]] = {
             "a tie of the two-path gain with k_add^2 noise variances, never met",
         ("np.abs(theta_hat - theta_lin) > 3.0 * model.theta_step()", "> -> >="):
             "a Newton step of exactly 3 step limits, never met",
+        ("n_par: int = 0", "0 -> 1"):
+            "a default never read: the one PathFit constructor call (_summarize) passes n_par",
+        ("return _ifft(buf, n=buf.shape[-1], axis=-1)", "-x -> x", 0):
+            "a branch for another scipy layout (_POCKET None), never taken with this scipy",
+        ("return _ifft(buf, n=buf.shape[-1], axis=-1)", "-x -> x", 1):
+            "a branch for another scipy layout (_POCKET None), never taken with this scipy",
+        ("dof = max(1, len(st.r) - n_par)", "1 -> 2"):
+            "the one caller passes n_par = 3 + n_theta; st.r is a segment, at least a drive long",
     },
     "rangekit/detect/stagger.py": {
         ("if len(self._cache) > 64:", "64 -> 65"): "a cache's size: the same spectra",
