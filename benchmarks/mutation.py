@@ -275,6 +275,17 @@ EQUIVALENT: dict[str, dict[tuple, str]] = {
             "a Newton step of exactly 3 step limits, never met",
         ("n_par: int = 0", "0 -> 1"):
             "a default never read: the one PathFit constructor call (_summarize) passes n_par",
+        ("if a.ndim == 1 and len(a) <= n and a.dtype == np.float64 and _POCKET is not None:",
+         "== -> !=", 0): "scipy.fft.rfft instead (every caller passes 1-d): the same pocketfft "
+            "call, bit-identical (checked)",
+        ("if a.ndim == 1 and len(a) <= n and a.dtype == np.float64 and _POCKET is not None:",
+         "1 -> 2"): "scipy.fft.rfft instead: the same pocketfft call, bit-identical (checked)",
+        ("if len(self._cache) > 64:", "64 -> 65"): "a cache's size: the same spectra",
+        ("@functools.lru_cache(maxsize=16)", "16 -> 17"): "a cache's size: the same models",
+        ("return _ifft(buf, n=buf.shape[-1], axis=-1)", "1 -> 2", 0):
+            "a branch for another scipy layout (_POCKET None), never taken with this scipy",
+        ("return _ifft(buf, n=buf.shape[-1], axis=-1)", "1 -> 2", 1):
+            "a branch for another scipy layout (_POCKET None), never taken with this scipy",
         ("return _ifft(buf, n=buf.shape[-1], axis=-1)", "-x -> x", 0):
             "a branch for another scipy layout (_POCKET None), never taken with this scipy",
         ("return _ifft(buf, n=buf.shape[-1], axis=-1)", "-x -> x", 1):
