@@ -240,8 +240,11 @@ def clip_mask(
             continue  # digital silence at a rail is not clipping
         # a run of min_run consecutive indices among the (few) samples at the rail
         step = np.diff(idx) == 1
-        touches = _touches(idx[x[idx] == rail], min_count, max_gap)
-        if min_run <= 1 or touches or _runs_at_least(step, min_run - 1).any():
+        if (
+            min_run <= 1
+            or _runs_at_least(step, min_run - 1).any()
+            or _touches(idx[x[idx] == rail], min_count, max_gap)
+        ):
             mask[idx] = True
     return mask
 
