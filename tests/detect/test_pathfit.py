@@ -15,6 +15,7 @@ import math
 
 import numpy as np
 import pytest
+from pathfit_signals import received
 
 from rangekit.detect import pathfit as P
 from rangekit.detect.matched import MatchedFilter, coded_template, first_path
@@ -35,18 +36,6 @@ FS = 192000.0
 @pytest.fixture(scope="module")
 def model():
     return ResonatorModel.for_burst(CodedBurst(), fs=FS)
-
-
-def _received(q: float, onsets, amps, n: int = 4000, f0: float = 40000.0, qr=None):
-    """The drive at fractional ``onsets`` (band-limited shift), through Tx and Rx."""
-    d = burst_waveform(CodedBurst(fs=FS))
-    f = np.fft.rfftfreq(n)
-    spec = np.fft.rfft(d, n)
-    x = np.zeros(n)
-    for t0, a in zip(onsets, amps, strict=True):
-        x += a * np.fft.irfft(spec * np.exp(-2j * np.pi * f * t0), n)
-    t, r = Transducer(f0, q), Transducer(f0, q if qr is None else qr)
-    return r.apply(t.apply(x, fs=FS), fs=FS)
 
 
 @pytest.mark.parametrize("stages", [1, 3])
@@ -109,7 +98,7 @@ def test_model_derivatives_match_finite_differences(model):
     assert np.max(np.abs(dq - num_q)) < 1e-6 * np.max(np.abs(dq))
     assert np.max(np.abs(df - num_f)) < 1e-6 * np.max(np.abs(df))
     # Onset derivative: the model's d/du column against a finite difference of the fit.
-    x = _received(q, [100.3], [1.0], n=model.segment)
+    x = received(q, [100.3], [1.0], n=model.segment)
     st = _evaluate(x, model, np.array([100.3]), np.array([math.log(q), f0]), True)
     st2 = _evaluate(x, model, np.array([100.3 + 1e-4]), np.array([math.log(q), f0]), True)
     st1 = _evaluate(x, model, np.array([100.3 - 1e-4]), np.array([math.log(q), f0]), True)
@@ -124,7 +113,7 @@ def test_noiseless_arrival_onset_q_and_f0_recovered(model, q, f0, frac):
     """Whatever the transducers' Q and tuning (MA40S4: 40.0 +- 1.0 kHz), the fit times
     the drive's start: 1e-3 samples (5 nm of sound) and Q, f0 to 1e-4."""
     t0 = 1500.0 + frac
-    x = _received(q, [t0], [0.01], f0=f0)
+    x = received(q, [t0], [0.01], f0=f0)
     fit = fit_arrival(x, t0 + 7.0, model=model, sigma=1e-9, q0=4.0)
     assert fit.n_paths == 1
     assert abs(fit.onset - t0) < 1e-3
@@ -138,7 +127,7 @@ def test_reflection_stronger_than_direct_inside_the_burst_is_resolved(model, q, 
     """A ceiling bounce 1.5x the direct path 0.2-1 ms later (the burst lasts 0.525 ms):
     both paths fitted, the direct one timed to 0.01 samples."""
     t0 = 1200.25
-    x = _received(q, [t0, t0 + lag_s * FS], [1.0, 1.5])
+    x = received(q, [t0, t0 + lag_s * FS], [1.0, 1.5])
     # The coarse first path of the default (Q 4) template: the direct path where the
     # two are apart, the merged pair where they overlap.
     mf = MatchedFilter(coded_template(fs=FS, tx=Transducer(), rx=Transducer()))
@@ -162,7 +151,7 @@ def test_unequal_transducers_fitted_as_one_equal_pair(model, qt, qr, bound_mm):
     with one Q between the two; the onset moves by well under a millimetre for Q ratios
     up to 2."""
     t0 = 1500.4
-    x = _received(qt, [t0], [0.01], qr=qr)
+    x = received(qt, [t0], [0.01], qr=qr)
     fit = fit_arrival(x, t0, model=model, sigma=1e-7, q0=4.0)
     assert abs(fit.onset - t0) / FS * 343.0 < bound_mm * 1e-3
     assert min(qt, qr) < fit.q < max(qt, qr)
@@ -190,7 +179,7 @@ def test_sigma_matches_the_scatter_of_noisy_fits(model):
     known-Q sigma (what not knowing Q costs: measured 1.5x)."""
     rng = np.random.default_rng(4)
     q, t0 = 12.0, 1500.3
-    clean = _received(q, [t0], [1.0])
+    clean = received(q, [t0], [1.0])
     e = float(clean @ clean)
     noise = math.sqrt(e) / 10 ** (30 / 20)  # sqrt(2E/N0) = 31.6: E / sigma^2 = 1000
     errs, sig, given, theta, theta_sd = [], [], [], [], []
@@ -269,10 +258,10 @@ def test_q_beyond_the_limit_is_fitted_at_the_limit(model):
     limit), and the arrival's own estimate (one Newton step from it) lies between the
     limit and the truth (measured 38.4); within the limits (Q 29) the fit is exact."""
     t0 = 1500.3
-    f = fit_arrival(_received(40.0, [t0], [0.01]), t0, model=model, sigma=1e-9)
+    f = fit_arrival(received(40.0, [t0], [0.01]), t0, model=model, sigma=1e-9)
     assert math.exp(f.theta_lin[0]) == pytest.approx(Q_LIMITS[1], rel=1e-12)
     assert Q_LIMITS[1] + 4.0 < f.q < 40.0
-    f = fit_arrival(_received(29.0, [t0], [0.01]), t0, model=model, sigma=1e-9)
+    f = fit_arrival(received(29.0, [t0], [0.01]), t0, model=model, sigma=1e-9)
     assert f.q == pytest.approx(29.0, rel=1e-6) and abs(f.onset - t0) < 1e-3
 
 
@@ -284,9 +273,9 @@ def test_a_held_fit_holds_the_default_q_and_estimates_the_arrivals_own(model):
     (measured 11.79, 11.74); the onset conditioned on it is within 0.16 samples (0.081,
     0.075)."""
     t0 = 1500.25
-    f = fit_arrival(_received(4.0, [t0], [0.01]), t0, model=model, sigma=1e-9, hold=True)
+    f = fit_arrival(received(4.0, [t0], [0.01]), t0, model=model, sigma=1e-9, hold=True)
     assert f.q == pytest.approx(4.0, rel=1e-9) and abs(f.onset - t0) < 1e-6
-    x = _received(12.0, [t0], [0.01])
+    x = received(12.0, [t0], [0.01])
     for qh, off in ((10.0, 1.10), (14.0, -0.81)):
         f = fit_arrival(x, t0, model=model, sigma=1e-9, hold=True, q0=qh)
         assert math.exp(f.theta_lin[0]) == pytest.approx(qh, rel=1e-12)
@@ -303,7 +292,7 @@ def test_a_direct_path_weaker_than_a_later_reflection(model):
     ``rel_threshold`` 0.4 it is not; at 0.2 of the reflection (SNR 150) it is not."""
     t0, d = 1500.25, 0.3e-3 * FS
     e = model.energy(12.0, 40000.0)
-    x = _received(12.0, [t0, t0 + d], [0.35, 1.0])
+    x = received(12.0, [t0, t0 + d], [0.35, 1.0])
     sigma = 0.35 * math.sqrt(e) / 9.0  # the direct path's SNR: 9
     f = fit_arrival(x, t0 + d, model=model, sigma=sigma)
     assert f.n_paths == 2 and abs(f.onset - t0) < 1e-3
@@ -313,7 +302,7 @@ def test_a_direct_path_weaker_than_a_later_reflection(model):
     assert abs(f.onset - (t0 + d)) < 1e-3
     f = fit_arrival(x, t0 + d, model=model, sigma=sigma, rel_threshold=0.4)
     assert abs(f.onset - (t0 + d)) < 1e-3
-    x = _received(12.0, [t0, t0 + d], [0.2, 1.0])
+    x = received(12.0, [t0, t0 + d], [0.2, 1.0])
     f = fit_arrival(x, t0 + d, model=model, sigma=0.2 * math.sqrt(e) / 30.0)
     assert f.n_paths == 2 and abs(f.onset - (t0 + d)) < 1e-3
 
@@ -323,7 +312,7 @@ def test_a_path_at_the_segments_start_is_read_again_from_earlier(model):
     the first segment read): the segment is read again from ``PRE_S`` before the path,
     and the fit is the one from the right lag (the same segment, onset and sigma)."""
     t0 = 1500.25
-    x = _received(12.0, [t0], [1.0])
+    x = received(12.0, [t0], [1.0])
     rng = np.random.default_rng(7)
     x = x + 1e-3 * rng.standard_normal(len(x))
     right = fit_arrival(x, t0, model=model, sigma=1e-3)
@@ -339,7 +328,7 @@ def test_the_first_path_lies_in_lo_hi_within_a_sample(model):
     second; with ``hi`` before the second, the first, and a ``[lo, hi)`` that holds neither:
     no fit."""
     t0, d = 1500.25, 0.3e-3 * FS
-    x = _received(12.0, [t0, t0 + d], [1.0, 0.8])
+    x = received(12.0, [t0, t0 + d], [1.0, 0.8])
     for lo, want in ((t0 - 0.5, t0), (t0 + 0.9, t0), (t0 + 1.5, t0 + d)):
         f = fit_arrival(x, t0, model=model, sigma=1e-6, lo=lo)
         assert abs(f.onset - want) < 1e-3, lo - t0
@@ -353,7 +342,7 @@ def test_well_posed_refuses_close_paths_and_outsized_amplitudes(model):
     than ``AMP_GUARD`` (2) times the segment's single-path amplitude scale."""
     th = model.theta_start(12.0)
     res = P._resolution(model, th)
-    x = _received(12.0, [100.0, 100.0 + 2 * res], [1.0, 1.5], n=model.segment)
+    x = received(12.0, [100.0, 100.0 + 2 * res], [1.0, 1.5], n=model.segment)
     st = _evaluate(x, model, np.array([100.0, 100.0 + 2 * res]), th, False)
     top = float(P._amps(st).max())
     assert top == pytest.approx(1.5, rel=1e-6)
@@ -372,7 +361,7 @@ def test_the_fit_does_not_depend_on_the_recordings_scale(model, hold):
     scaled alike: the same onsets, sigma, Q and misfit (relative 1e-6)."""
     t0 = 1200.25
     rng = np.random.default_rng(2)
-    x = _received(12.0, [t0, t0 + 0.05e-3 * FS], [1.0, 1.5])
+    x = received(12.0, [t0, t0 + 0.05e-3 * FS], [1.0, 1.5])
     x = x + 1e-3 * rng.standard_normal(len(x))
     fits = [
         fit_arrival(s * x, t0, model=model, sigma=s * 1e-3, hold=hold, q0=12.0)
@@ -395,7 +384,7 @@ def test_three_separated_paths_are_each_fitted(model):
     Q held, at their onsets and amplitudes."""
     t0 = 1500.25
     on = [t0, t0 + 0.3e-3 * FS, t0 + 0.65e-3 * FS]
-    x = _received(12.0, on, [1.0, 0.7, 0.5])
+    x = received(12.0, on, [1.0, 0.7, 0.5])
     for hold in (False, True):
         f = fit_arrival(x, t0, model=model, sigma=1e-6, hold=hold, q0=12.0)
         assert f.n_paths == 3 and f.first == 0 and f.strongest == 0, hold
@@ -424,7 +413,7 @@ def test_energies_resolution_and_matched_filter_in_closed_form(model, q):
     a = hilbert(w)
     r = np.abs(np.correlate(a, a, "full"))[len(a) - 1 :]
     assert P._resolution(model, th) == float(np.flatnonzero(r < 0.5 * r[0])[0])
-    x = _received(q, [100.0, 180.0], [1.0, 0.5], n=model.segment)
+    x = received(q, [100.0, 180.0], [1.0, 0.5], n=model.segment)
     spec = np.zeros(model.n_fft, complex)
     spec[: model.n_fft // 2 + 1] = model.spectrum(q, 40000.0)
     sa = np.fft.ifft(spec)  # the analytic waveform
@@ -458,7 +447,7 @@ def test_no_fit_without_an_arrival_or_without_room_for_the_drive(model):
     noise = 1e-3 * rng.standard_normal(4000)
     assert fit_arrival(noise, 1500.0, model=model, sigma=1e-3) is None
     assert fit_arrival(noise, 1500.0, model=model, sigma=1e-3, hold=True) is None
-    x = _received(12.0, [1500.25], [1.0])
+    x = received(12.0, [1500.25], [1.0])
     assert fit_arrival(x[:1550], 1540.0, model=model, sigma=1e-6) is None
     f0 = fit_arrival(x, 1500.25, model=model, sigma=0.0)
     f1 = fit_arrival(x, 1500.25, model=model, sigma=1e-12 * float(np.max(np.abs(x))))
@@ -472,7 +461,7 @@ def test_chi2_degrees_of_freedom_and_misfit_z(model, hold):
     (measured |misfit_z| 0.05-1.83); ``misfit_z`` is that z; ``n_par`` counts 3 per path
     and the 2 transducer parameters unless they were held."""
     rng = np.random.default_rng(11)
-    x = _received(12.0, [1500.25, 1500.25 + 0.3e-3 * FS], [1.0, 0.6])
+    x = received(12.0, [1500.25, 1500.25 + 0.3e-3 * FS], [1.0, 0.6])
     for _ in range(3):
         y = x + 1e-3 * rng.standard_normal(len(x))
         f = fit_arrival(y, 1500.25, model=model, sigma=1e-3, hold=hold, q0=12.0)
@@ -491,7 +480,7 @@ def test_a_further_path_must_clear_k_add_noise_scales(model):
     held; measured) where it overlaps its tail."""
     t0, a = 1500.3, 0.3
     e = model.energy(12.0, 40000.0)
-    x = _received(12.0, [t0, t0 + 0.55e-3 * FS], [1.0, a])
+    x = received(12.0, [t0, t0 + 0.55e-3 * FS], [1.0, a])
     for hold in (False, True):
         f = fit_arrival(x, t0, model=model, sigma=a * math.sqrt(e) / 7.0, hold=hold, q0=12.0)
         assert f.n_paths == 2 and abs(f.onset - t0) < 1e-3, hold
@@ -504,7 +493,7 @@ def test_a_fit_stopped_at_once_is_completed_by_the_newton_step(model):
     the summary's one Newton step in the onsets brings the onset from the scan's
     parabolic vertex to within 0.005 samples of the truth (measured 0.0025)."""
     t0 = 1500.3
-    x = _received(12.0, [t0], [0.01])
+    x = received(12.0, [t0], [0.01])
     f = fit_arrival(x, t0, model=model, sigma=1e-6, tol=1e6)
     assert abs(f.onset - t0) < 0.005
 
@@ -515,7 +504,7 @@ def test_misfit_z_is_the_residual_chi2_in_standard_deviations(model):
     truth in noise about 0 (within 4: measured 0.52)."""
     rng = np.random.default_rng(9)
     th = model.theta_start(12.0)
-    x = _received(12.0, [100.3], [1.0], n=model.segment)
+    x = received(12.0, [100.3], [1.0], n=model.segment)
     x = x + 1e-3 * rng.standard_normal(len(x))
     st = _evaluate(x, model, np.array([100.3]), th, False)
     n = len(x)
@@ -541,7 +530,7 @@ def test_two_path_scan_is_the_least_squares_pair(model):
     states (rel 1e-4; measured 1.1e-5, the waveform's tail at the grid's end) and no
     pair of a grid around it explains more; noiseless, it is the true pair."""
     th = model.theta_start(12.0)
-    x = _received(12.0, [100.0, 115.0], [1.0, 0.7], n=model.segment)
+    x = received(12.0, [100.0, 115.0], [1.0, 0.7], n=model.segment)
     rng = np.random.default_rng(3)
 
     def explained(y, u1, u2):
@@ -580,7 +569,7 @@ def test_gain_is_the_onsets_derivative_along_the_profile(model):
     held at ``theta`` +- a small step, central differences: within 1e-3 relative;
     measured 1.1e-5 in log Q, 1.7e-5 in f0)."""
     t0 = 1500.3
-    x = _received(12.0, [t0], [0.01])
+    x = received(12.0, [t0], [0.01])
 
     def onset(q, f0=40000.0):
         f = fit_arrival(x, t0, model=model, sigma=1e-6, hold=True, q0=q, f0=f0)
@@ -612,7 +601,7 @@ def test_the_fit_does_not_depend_on_the_drives_scale(hold):
     scan) alike: the same onsets, sigma and Q, the amplitudes in inverse units."""
     t0 = 1200.25
     rng = np.random.default_rng(2)
-    x = _received(12.0, [t0, t0 + 0.05e-3 * FS], [1.0, 1.5])
+    x = received(12.0, [t0, t0 + 0.05e-3 * FS], [1.0, 1.5])
     x = x + 1e-3 * rng.standard_normal(len(x))
     d = burst_waveform(CodedBurst(fs=FS))
     fits = {

@@ -9,11 +9,12 @@ import itertools
 
 import numpy as np
 import pytest
+from pathfit_signals import received
 
 from rangekit.detect import pathfit as P
 from rangekit.detect.fitted import transducer_models
 from rangekit.detect.matched import coded_template, detect_matched
-from rangekit.signals.barker import CodedBurst, burst_waveform
+from rangekit.signals.barker import CodedBurst
 from rangekit.signals.transducer import Transducer
 
 FS = 192000.0
@@ -78,15 +79,6 @@ def test_numpy_lm_step_is_marquardts_damped_step():
     assert capped == pytest.approx(0.25 * free, rel=1e-12)
 
 
-def _received(q: float, t0: float, n: int = 4000, f0: float = 40000.0) -> np.ndarray:
-    """The drive at a fractional onset ``t0`` (band-limited shift), through Tx and Rx."""
-    d = burst_waveform(CodedBurst(fs=FS))
-    f = np.fft.rfftfreq(n)
-    x = np.fft.irfft(np.fft.rfft(d, n) * np.exp(-2j * np.pi * f * t0), n)
-    t = Transducer(f0, q)
-    return t.apply(t.apply(x, fs=FS), fs=FS)
-
-
 @pytest.mark.parametrize(("late_s", "read_again"), [(0.3e-3, False), (0.33e-3, True),
                                                     (0.35e-3, True)])  # fmt: skip
 def test_a_path_in_the_first_quarter_of_pre_s_is_read_again(late_s, read_again):
@@ -98,7 +90,7 @@ def test_a_path_in_the_first_quarter_of_pre_s_is_read_again(late_s, read_again):
     apart at 0.3 ms)."""
     model = P.ResonatorModel.for_burst(CodedBurst(), fs=FS)
     t0 = 1500.25
-    x = _received(12.0, t0) + 1e-3 * np.random.default_rng(7).standard_normal(4000)
+    x = received(12.0, [t0], [1.0]) + 1e-3 * np.random.default_rng(7).standard_normal(4000)
     right = P.fit_arrival(x, t0, model=model, sigma=1e-3)
     late = P.fit_arrival(x, t0 + late_s * FS, model=model, sigma=1e-3)
     assert right.n0 == int(t0) - model.pre
