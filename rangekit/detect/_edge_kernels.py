@@ -45,6 +45,11 @@ __all__: list[str] = []
 #: same threshold as ``band_energy``: above it numba is imported anyway).
 NUMBA_MIN_SAMPLES = _BAND_MIN
 
+#: Largest clock-rate mismatch between a beep's player and its recorder that
+#: ``changepoint._combine`` (and :func:`_combine_py`) take for drift of the bursts, not
+#: for inconsistency: 200 ppm.
+MAX_DRIFT = 2e-4
+
 
 def _env(t: float, taper_s: float, burst_s: float) -> float:
     """:func:`rangekit.signals.beep.burst_envelope` at one time ``t`` (s)."""
@@ -544,6 +549,50 @@ def _median_py(v: np.ndarray, m: int) -> float:
     return w[h] if m % 2 else (w[h - 1] + w[h]) / 2.0
 
 
+def _better_line(n, cost, mean, n_best, cost_best, mean_best) -> bool:
+    """``changepoint._better_line``: more bursts, else a lower cost (beyond 1e-9), else an
+    earlier mean."""
+    if n != n_best:
+        return n > n_best
+    if abs(cost - cost_best) > 1e-9:
+        return cost < cost_best
+    return mean < mean_best
+
+
+def _drift_line_py(ks, est, w, members, m, lim):
+    """``changepoint._drift_line`` of one set of bursts: ``(mean, slope, kbar)``."""
+    sw = 0.0
+    swk = 0.0
+    swe = 0.0
+    for i in range(m):
+        if members[i]:
+            sw += w[i]
+            swk += w[i] * ks[i]
+            swe += w[i] * est[i]
+    if sw <= 0:
+        return math.inf, 0.0, 0.0
+    kbar = swk / sw
+    mean = swe / sw
+    sxx = 0.0
+    sxy = 0.0
+    for i in range(m):
+        if members[i]:
+            sxx += w[i] * (ks[i] - kbar) ** 2
+            sxy += w[i] * (ks[i] - kbar) * (est[i] - mean)
+    slope = sxy / sxx if sxx > 0 else 0.0
+    return mean, min(max(slope, -lim), lim), kbar
+
+
+def _pair_of(c: int, m: int) -> tuple[int, int]:
+    """The pair ``(i, j)``, ``i < j < m``, at index ``c`` of ``numpy.triu_indices(m, 1)``'s
+    order."""
+    i = 0
+    while c >= m - 1 - i:
+        c -= m - 1 - i
+        i += 1
+    return i, i + 1 + c
+
+
 def _combine_py(
     on: np.ndarray,
     sg_raw: np.ndarray,
@@ -571,7 +620,7 @@ def _combine_py(
         return False
     est = np.empty(m)
     sg = np.empty(m)
-    allow = np.empty(m)
+    base = np.empty(m)
     w_all = np.empty(m)
     for i in range(m):
         k = ks[i]
@@ -580,35 +629,59 @@ def _combine_py(
         if math.isnan(v) or v > 1e6:
             v = 1e6
         sg[i] = min(max(v, 1e-3), 1e6)
-        allow[i] = 2.0 * scale + 4.0 * sg[i] + 2e-4 * k * spacing
+        base[i] = 2.0 * scale + 4.0 * sg[i]
         w_all[i] = 1.0 / sg[i] ** 2
-    support = np.zeros(m, dtype=np.int64)
-    means = np.empty(m)
-    for i in range(m):
+    lim = MAX_DRIFT * spacing
+    # Candidate drift lines (changepoint._combine): through each pair of bursts (slope
+    # held within MAX_DRIFT), then each burst alone (slope 0); the bursts near one give
+    # its least-squares drift line, the bursts near that line are the candidate's; the
+    # best by _better_line.
+    ok = np.zeros(m, dtype=np.bool_)
+    inl = np.zeros(m, dtype=np.bool_)
+    top = -1
+    best_cost = math.inf
+    centre = math.inf
+    n_pairs = m * (m - 1) // 2
+    for c in range(n_pairs + m):
+        if c < n_pairs:
+            i, j = _pair_of(c, m)
+            sl = min(max((est[j] - est[i]) / (ks[j] - ks[i]), -lim), lim)
+            wp = w_all[i] + w_all[j]
+            k_at = (w_all[i] * ks[i] + w_all[j] * ks[j]) / wp
+            e_at = (w_all[i] * est[i] + w_all[j] * est[j]) / wp
+        else:
+            i = c - n_pairs
+            sl, k_at, e_at = 0.0, float(ks[i]), est[i]
+        for q in range(m):
+            inl[q] = abs(est[q] - (e_at + sl * (ks[q] - k_at))) <= base[q]
+        e_at, sl, k_at = _drift_line_py(ks, est, w_all, inl, m, lim)
+        n_in = 0
         num = 0.0
         den = 0.0
-        for j in range(m):
-            if abs(est[i] - est[j]) <= max(allow[i], allow[j]):
-                support[i] += 1
-                num += w_all[j] * est[j]
-                den += w_all[j]
-        means[i] = num / den
-    top = support.max()
-    centre = math.inf
-    for i in range(m):
-        if support[i] == top and means[i] < centre:
-            centre = means[i]
+        cost = 0.0
+        for q in range(m):
+            rq = est[q] - (e_at + sl * (ks[q] - k_at))
+            inl[q] = abs(rq) <= base[q]
+            if inl[q]:
+                n_in += 1
+                num += w_all[q] * est[q]
+                den += w_all[q]
+                cost += (rq / base[q]) ** 2
+        mean = num / den if den > 0 else math.inf
+        if c == 0 or _better_line(n_in, cost, mean, top, best_cost, centre):
+            top = n_in
+            best_cost = cost
+            centre = mean
+            for q in range(m):
+                ok[q] = inl[q]
     n_ok = 0
-    sw = 0.0
-    swe = 0.0
     for i in range(m):
-        if abs(est[i] - centre) <= allow[i]:
+        if ok[i]:
             n_ok += 1
     if n_ok < min_bursts:
         return False
-    ok = np.zeros(m, dtype=np.bool_)
-    for i in range(m):
-        ok[i] = abs(est[i] - centre) <= allow[i]
+    sw = 0.0
+    swe = 0.0
     for i in range(m):
         if ok[i]:
             wt = 1.0 / sg[i] ** 2
@@ -1138,6 +1211,9 @@ _HELPERS = (
     _widen_py,
     _first_edge_py,
     _median_py,
+    _pair_of,
+    _drift_line_py,
+    _better_line,
     _combine_py,
     _onset_flags_py,
     _any_in,

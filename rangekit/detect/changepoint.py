@@ -824,12 +824,51 @@ def _anchors_compiled(
     return [(int(a), int(r)) for a, r in out.tolist()]
 
 
+#: Largest clock-rate mismatch between the player's and the recorder's sample clocks that
+#: :func:`_combine` takes for drift (not inconsistency) of a beep's bursts: 200 ppm (one
+#: constant with the compiled loop's).
+MAX_DRIFT = _edge_kernels.MAX_DRIFT
+
+
 def _allowed_scatter(scale, sigma, k, spacing):
-    """How far burst ``k``'s estimate of a beep onset may lie from the others', samples:
-    timing noise (2 samples at 44.1 kHz, ``scale`` = fs / 44100, and 4 sigma) plus 200 ppm
-    of clock-rate mismatch per spacing (``_edge_kernels._combine_py`` computes the same
-    in its compiled loop)."""
-    return 2.0 * scale + 4.0 * sigma + 2e-4 * k * spacing
+    """How far burst ``k``'s estimate of a beep onset may lie from burst 0's, samples:
+    timing noise (2 samples at 44.1 kHz, ``scale`` = fs / 44100, and 4 sigma) plus
+    :data:`MAX_DRIFT` of clock-rate mismatch per spacing (``k`` = 0: the timing noise
+    alone, the tolerance about :func:`_drift_line`)."""
+    return 2.0 * scale + 4.0 * sigma + MAX_DRIFT * k * spacing
+
+
+def _better_line(n, cost, mean, n_best, cost_best, mean_best) -> bool:
+    """Whether a candidate drift line holding ``n`` bursts at ``cost`` (their summed
+    squared residual over timing noise) with mean estimate ``mean`` beats the best so far:
+    more bursts, else a lower cost (by more than 1e-9: rounding), else an earlier mean
+    (``_edge_kernels._combine_py`` applies the same rule)."""
+    if n != n_best:
+        return n > n_best
+    if abs(cost - cost_best) > 1e-9:
+        return cost < cost_best
+    return mean < mean_best
+
+
+def _drift_line(ks, est, w, members, spacing):
+    """``(mean, slope, kbar)`` of the weighted straight lines through the onset estimates
+    ``est`` of bursts ``ks`` (weights ``w``) selected by each row of ``members``: the
+    estimates of a beep played on one clock and recorded on another drift by ``r
+    spacing`` samples a burst (r the rate mismatch), so burst k estimates ``mean + slope
+    (k - kbar)``. The least-squares slope is held within +-:data:`MAX_DRIFT` ``spacing``
+    (a steeper drift is not a clock's); a row selecting no burst gives an infinite mean.
+    ``_edge_kernels._combine_py`` computes the same in its loop."""
+    wm = members * w[None, :]
+    sw = wm.sum(axis=1)
+    safe = np.where(sw > 0, sw, 1.0)
+    kbar = (wm @ ks) / safe
+    mean = np.where(sw > 0, (wm @ est) / safe, np.inf)
+    dk = ks[None, :] - kbar[:, None]
+    sxx = np.sum(wm * dk**2, axis=1)
+    sxy = np.sum(wm * dk * (est[None, :] - np.where(sw > 0, mean, 0.0)[:, None]), axis=1)
+    slope = np.divide(sxy, sxx, out=np.zeros(len(sxx)), where=sxx > 0)
+    lim = MAX_DRIFT * spacing
+    return mean, np.clip(slope, -lim, lim), kbar
 
 
 def _combine(
@@ -843,10 +882,18 @@ def _combine(
     """One beep onset from its bursts' fits, or None when too few of them agree.
 
     Each found burst k gives an estimate of the beep onset, its onset minus k * spacing.
-    The centre is the weighted mean of the estimates agreeing with the best-supported one
-    (the earliest such mean on a tie: a burst timed on a reflection is late); bursts
-    further than their allowed scatter from it are rejected and the rest averaged with
-    inverse-variance weights, the 1-sigma scaled up by their reduced chi-square.
+    Two estimates agree when they differ by at most the timing noise (2 samples at 44.1
+    kHz and 4 sigma) and :data:`MAX_DRIFT` of clock rate over the spacings between them.
+    The bursts agreeing with the best-supported one (the earliest such group on a tie: a
+    burst timed on a reflection is late) give a drift line (:func:`_drift_line`, slope
+    within +-200 ppm); bursts further than their timing noise from that line are rejected
+    (the line refitted on the rest) and the rest averaged with inverse-variance weights,
+    the 1-sigma scaled up by their reduced chi-square about that mean. So a far beep
+    recorded 150 ppm fast keeps all its bursts at any spacing, while a burst off the line
+    is rejected whichever it is. The onset stays the weighted mean of the estimates: under
+    a rate mismatch r it lies ``r kbar spacing`` after burst 0's (``kbar`` the bursts'
+    weighted mean index), which two-way ranging cancels (each far arrival carries its
+    clock pair's r with the opposite sign) and the chi-square puts into sigma.
 
     Returns ``(onset, sigma, snr_db, confidence, burst_onsets, flags, strength)``;
     ``strength`` is the summed edge statistic of the kept bursts.
@@ -860,14 +907,34 @@ def _combine(
     # A failed fit reports an infinite sigma; it then weighs (almost) nothing.
     raw_sg = np.array([fits[k].sigma for k in ks])
     sg = np.clip(np.nan_to_num(raw_sg, nan=1e6, posinf=1e6), 1e-3, 1e6)
-    allow = _allowed_scatter(scale, sg, ks, spacing)
-    close = np.abs(est[:, None] - est[None, :]) <= np.maximum(allow[:, None], allow[None, :])
-    support = close.sum(axis=1)
+    base = _allowed_scatter(scale, sg, 0, spacing)
     w_all = 1.0 / sg**2
-    means = (close * w_all[None, :]) @ est / (close @ w_all)
-    best = np.flatnonzero(support == support.max())
-    centre = float(np.min(means[best]))
-    ok = np.abs(est - centre) <= allow
+    # Candidate drift lines: through each pair of bursts (slope held within MAX_DRIFT) and
+    # each burst alone (slope 0). The bursts within their timing noise of a candidate give
+    # its least-squares drift line (:func:`_drift_line`), and the bursts within their
+    # timing noise of that line are the candidate's. The one with most bursts wins; on a
+    # tie the one they fit best (``sum (residual / noise)^2``), then the earliest mean of
+    # them (a burst timed on a reflection is late).
+    i, j = np.triu_indices(len(ks), 1)
+    lim = MAX_DRIFT * spacing
+    slope = np.clip((est[j] - est[i]) / (ks[j] - ks[i]), -lim, lim)
+    wp = w_all[i] + w_all[j]
+    k_at = np.concatenate([(w_all[i] * ks[i] + w_all[j] * ks[j]) / wp, ks])
+    e_at = np.concatenate([(w_all[i] * est[i] + w_all[j] * est[j]) / wp, est])
+    slope = np.concatenate([slope, np.zeros(len(ks))])
+    res = est[None, :] - (e_at[:, None] + slope[:, None] * (ks[None, :] - k_at[:, None]))
+    mean, slope, kbar = _drift_line(ks, est, w_all, np.abs(res) <= base[None, :], spacing)
+    res = est[None, :] - (mean[:, None] + slope[:, None] * (ks[None, :] - kbar[:, None]))
+    inl = np.abs(res) <= base[None, :]
+    support = inl.sum(axis=1)
+    cost = np.sum(np.where(inl, (res / base[None, :]) ** 2, 0.0), axis=1)
+    den = inl @ w_all
+    means = np.divide(inl @ (w_all * est), den, out=np.full(len(den), np.inf), where=den > 0)
+    pick = 0
+    for c in range(1, len(support)):
+        if _better_line(support[c], cost[c], means[c], support[pick], cost[pick], means[pick]):
+            pick = c
+    ok = inl[pick]
     if ok.sum() < min_bursts:
         return None
     wts = 1.0 / sg[ok] ** 2
