@@ -189,20 +189,247 @@ def _lm_step_py(jp: np.ndarray, r: np.ndarray, p: int, lam: float, lim: np.ndarr
     return gn, lam, step
 
 
-_KERNELS = {"vp": _vp_py, "lm_step": _lm_step_py}
+def _shift_rows_py(
+    tab: np.ndarray, nt: int, wc: float, m: int, u: np.ndarray, n: int, rows: np.ndarray
+):  # fmt: skip
+    """Rows ``IFFT(s exp(-j w u_i))[:n]`` and ``IFFT(s (-j w) exp(-j w u_i))[:n]`` from
+    the shift tables of one held spectrum ``s`` (no FFT).
+
+    ``tab[q]`` is ``D_q = IFFT(s (w - wc)^q)`` on the ``m``-point grid followed by its
+    first ``n`` or more samples again (a circular shift is a slice). With ``u = i + f``,
+    ``i = round(u)``:
+    ``exp(-j w u) = exp(-j w i) exp(-j wc f) sum_q (-j f (w - wc))^q / q!``; the factor
+    ``exp(-j w i)`` is the circular shift by ``i``, so row ``0`` is
+    ``exp(-j wc f) sum_q c_q D_q[t - i]`` with ``c_q = (-j f)^q / q!``, ``q < nt``, and
+    row ``1`` (``-j w = -j wc - j (w - wc)``) is ``-j wc`` row 0 ``- j exp(-j wc f) sum_q
+    c_q D_{q+1}[t - i]``. ``tab`` holds ``nt + 1`` tables.
+    """
+    k = u.shape[0]
+    acc0 = np.empty(n, dtype=np.complex128)
+    acc1 = np.empty(n, dtype=np.complex128)
+    for i in range(k):
+        sh = int(math.floor(u[i] + 0.5))
+        f = u[i] - sh
+        start = (-sh) % m
+        for t in range(n):
+            acc0[t] = tab[0, start + t]
+            acc1[t] = tab[1, start + t]
+        c = 1.0 + 0.0j
+        mjf = -1j * f
+        for q in range(1, nt):
+            c = c * mjf / q
+            for t in range(n):
+                acc0[t] += c * tab[q, start + t]
+                acc1[t] += c * tab[q + 1, start + t]
+        e = complex(math.cos(wc * f), -math.sin(wc * f))
+        mjwc = -1j * wc
+        for t in range(n):
+            w = e * acc0[t]
+            rows[0, i, t] = w
+            rows[1, i, t] = mjwc * w - 1j * (e * acc1[t])
+
+
+def _held_fit_py(
+    x: np.ndarray, tab: np.ndarray, nt: int, wc: float, m: int, u0: np.ndarray, u_lo: float,
+    u_hi: float, tol: float, max_iter: int,
+):  # fmt: skip
+    """The whole Levenberg-Marquardt fit of the path onsets with the transducer held.
+
+    The loop of :func:`rangekit.detect.pathfit.fit_paths` (``fit_theta=False``: steps of
+    at most 4 samples, damping ``1e-3`` raised tenfold on a rejected step and lowered
+    threefold on an accepted one, the same stopping rules), each evaluation the rows of
+    :func:`_shift_rows_py` and the step after them of :func:`_vp_py`. Returns ``(ok, u,
+    cost, a, r, basis, gram_inv, jac, jp)``; ``ok`` False if a Gram matrix was not
+    positive definite (the caller then runs the reference, whose pseudo-inverse copes).
+    """
+    n = x.shape[0]
+    k = u0.shape[0]
+    lim = np.full(k, 4.0)
+    rows = np.empty((2, k, n), dtype=np.complex128)
+    u = u0.copy()
+    _shift_rows_py(tab, nt, wc, m, u, n, rows)
+    ok, basis, gi, a, r, cost, jac, jp = _vp_py(rows, x, n)
+    if not ok:
+        return False, u, cost, a, r, basis, gi, jac, jp
+    lam = 1e-3
+    nu = np.empty(k)
+    for _ in range(max_iter):
+        gn, lam, step = _lm_step_py(jp, r, k, lam, lim)
+        if gn < tol:
+            break  # the Gauss-Newton step would gain less than tol: converged
+        accepted = False
+        while lam < 1e8:
+            for i in range(k):
+                nu[i] = min(max(u[i] + step[i], u_lo), u_hi)
+            _shift_rows_py(tab, nt, wc, m, nu, n, rows)
+            c_ok, c_basis, c_gi, c_a, c_r, c_cost, c_jac, c_jp = _vp_py(rows, x, n)
+            if not c_ok:
+                return False, u, cost, a, r, basis, gi, jac, jp
+            if c_cost <= cost:
+                accepted = True
+                lam = max(lam / 3.0, 1e-9)
+                break
+            lam *= 10.0
+            if lam < 1e8:
+                _, lam, step = _lm_step_py(jp, r, k, lam, lim)
+        if not accepted:
+            break
+        small = True
+        for i in range(k):
+            if not abs(nu[i] - u[i]) < 1e-4:
+                small = False
+        gain = cost - c_cost
+        u = nu.copy()
+        basis, gi, a, r, cost, jac, jp = c_basis, c_gi, c_a, c_r, c_cost, c_jac, c_jp
+        if gain < tol or (small and (lam < 1.0 or gain <= 1e-12 * cost)):
+            break
+    return True, u, cost, a, r, basis, gi, jac, jp
+
+
+def _shift_row_py(
+    tab: np.ndarray, nt: int, wc: float, m: int, u: np.ndarray, n: int, out: np.ndarray
+):  # fmt: skip
+    """Row 0 of :func:`_shift_rows_py` alone (``out[i] = IFFT(spec exp(-j w u_i))[:n]``
+    for the tables ``tab`` of any one-sided spectrum ``spec``, ``nt`` of them read)."""
+    acc = np.empty(n, dtype=np.complex128)
+    for i in range(u.shape[0]):
+        sh = int(math.floor(u[i] + 0.5))
+        f = u[i] - sh
+        start = (-sh) % m
+        for t in range(n):
+            acc[t] = tab[0, start + t]
+        c = 1.0 + 0.0j
+        mjf = -1j * f
+        for q in range(1, nt):
+            c = c * mjf / q
+            for t in range(n):
+                acc[t] += c * tab[q, start + t]
+        e = complex(math.cos(wc * f), -math.sin(wc * f))
+        for t in range(n):
+            out[i, t] = e * acc[t]
+
+
+def _inverse_spd(g: np.ndarray, p: int, out: np.ndarray) -> bool:
+    """``out = g^-1`` of a symmetric positive definite ``g`` (Cholesky); False if not."""
+    lo = np.zeros((p, p))
+    if not _cholesky(g, p, lo):
+        return False
+    unit = np.zeros(p)
+    col = np.empty(p)
+    for c in range(p):
+        unit[c] = 1.0
+        _chol_solve(lo, p, unit, col)
+        unit[c] = 0.0
+        for i in range(p):
+            out[i, c] = col[i]
+    return True
+
+
+def _held_summary_py(
+    x: np.ndarray, tab: np.ndarray, tabd: np.ndarray, nt: int, wc: float, m: int, u: np.ndarray
+):  # fmt: skip
+    """What :func:`rangekit.detect.pathfit._summarize` computes of a held fit's paths
+    ``u``: the evaluation with the ``theta`` columns (rows from the shift tables: ``tab``
+    of the spectrum, ``tabd[j]`` of its derivative by ``theta_j``) and the Gauss-Newton
+    blocks of the projected Jacobian, onsets (``A``), ``theta`` (``C``), cross (``B``).
+
+    Returns ``(ok, a, cost, sig_energy, A^-1, A^-1 B, A^-1 g_u, S, S^-1 (g_t - B^T A^-1
+    g_u), S^-1)`` with ``S = C - B^T A^-1 B``; ``ok`` False if the Gram matrix, ``A`` or
+    ``S`` is not numerically positive definite (the caller then runs the reference,
+    which raises or falls back as its ``np.linalg`` calls do).
+    """
+    n = x.shape[0]
+    k = u.shape[0]
+    p = tabd.shape[0]
+    rows = np.empty((2 + p, k, n), dtype=np.complex128)
+    _shift_rows_py(tab, nt, wc, m, u, n, rows)
+    for j in range(p):
+        _shift_row_py(tabd[j], nt, wc, m, u, n, rows[2 + j])
+    ok, basis, _, a, r, cost, _, jp = _vp_py(rows, x, n)
+    e2 = np.empty((0, 0))
+    e1 = np.empty(0)
+    if not ok:
+        return False, a, cost, 0.0, e2, e2, e1, e2, e1, e2
+    q = k + p
+    jtj = np.zeros((q, q))
+    g = np.zeros(q)
+    for t in range(n):
+        rt = r[t]
+        for i in range(q):
+            ji = jp[t, i]
+            g[i] += ji * rt
+            for j in range(i + 1):
+                jtj[i, j] += ji * jp[t, j]
+    for i in range(q):
+        for j in range(i):
+            jtj[j, i] = jtj[i, j]
+    sig_energy = 0.0
+    m2 = basis.shape[1]
+    for t in range(n):
+        v = 0.0
+        for c in range(m2):
+            v += basis[t, c] * a[c]
+        sig_energy += v * v
+    amat = jtj[:k, :k].copy()
+    ai = np.empty((k, k))
+    if not _inverse_spd(amat, k, ai):
+        return False, a, cost, 0.0, e2, e2, e1, e2, e1, e2
+    aib = np.zeros((k, p))
+    aig = np.zeros(k)
+    for i in range(k):
+        for j in range(k):
+            aig[i] += ai[i, j] * g[j]
+            for c in range(p):
+                aib[i, c] += ai[i, j] * jtj[j, k + c]
+    smat = np.empty((p, p))
+    rhs = np.empty(p)
+    for i in range(p):
+        s_ = g[k + i]
+        for j in range(k):
+            s_ -= jtj[j, k + i] * aig[j]
+        rhs[i] = s_
+        for c in range(p):
+            s_ = jtj[k + i, k + c]
+            for j in range(k):
+                s_ -= jtj[j, k + i] * aib[j, c]
+            smat[i, c] = s_
+    for i in range(p):  # symmetric to rounding: make it exactly so for the factor
+        for c in range(i):
+            v = 0.5 * (smat[i, c] + smat[c, i])
+            smat[i, c] = v
+            smat[c, i] = v
+    si = np.empty((p, p))
+    if not _inverse_spd(smat, p, si):
+        return False, a, cost, 0.0, e2, e2, e1, e2, e1, e2
+    d = np.zeros(p)
+    for i in range(p):
+        for j in range(p):
+            d[i] += si[i, j] * rhs[j]
+    return True, a, cost, sig_energy, ai, aib, aig, smat, d, si
+
+
+_KERNELS = {"vp": _vp_py, "lm_step": _lm_step_py, "held_fit": _held_fit_py,
+            "shift_rows": _shift_rows_py, "held_summary": _held_summary_py}  # fmt: skip
+#: Helpers the kernels call, compiled into this module's namespace first.
+_HELPERS = ("_cholesky", "_chol_solve", "_vp_py", "_lm_step_py", "_shift_rows_py",
+            "_shift_row_py", "_inverse_spd")  # fmt: skip
 
 
 @functools.cache
 def _compiled(name: str, cache: bool = True):
     """The numba-compiled kernel ``name`` (numba imported on first use only; the
-    Cholesky helpers compiled first, in this module's namespace)."""
+    helpers it calls compiled first, in this module's namespace)."""
     import numba
 
     g = globals()
-    for h in ("_cholesky", "_chol_solve"):
+    for h in _HELPERS:
         if not isinstance(g[h], numba.core.registry.CPUDispatcher):
             g[h] = numba.njit(cache=cache, nogil=True)(g[h])
-    return numba.njit(cache=cache, nogil=True)(_KERNELS[name])
+    fn = _KERNELS[name]
+    for h in _HELPERS:
+        if getattr(g[h], "py_func", None) is fn:
+            return g[h]
+    return numba.njit(cache=cache, nogil=True)(fn)
 
 
 def call(name: str, *args):

@@ -323,9 +323,36 @@ def _key(tag: str, theta: np.ndarray, *extra) -> tuple:
 
 
 def _energy(model, theta: np.ndarray) -> float:
-    """Energy ``sum s[n]^2`` of the real received waveform of unit amplitude at ``theta``."""
-    s = model.spectrum_t(theta)
-    return float(np.sum(np.abs(s) ** 2) / (2.0 * model.n_fft))
+    """Energy ``sum s[n]^2`` of the real received waveform of unit amplitude at ``theta``
+    (cached on the model)."""
+    cache = _held_cache(model)
+    key = _key("energy", theta)
+    hit = cache.get(key)
+    if hit is None:
+        s = model.spectrum_t(theta)
+        hit = float(np.sum(np.abs(s) ** 2) / (2.0 * model.n_fft))
+        _held_put(cache, key, hit)
+    return hit
+
+
+#: Entries of a model's cache of held-``theta`` quantities (:func:`_held_cache`).
+HELD_CACHE = 24
+
+
+def _held_cache(model) -> dict:
+    """The model's cache of quantities at the ``theta`` a group's fits hold (energy,
+    shift tables): apart from ``model._cache``, which the free fits' many spectra clear,
+    so that the groups' few held values (one per group, alternating) stay."""
+    cache = model.__dict__.get("_held")
+    if cache is None:
+        cache = model.__dict__["_held"] = {}
+    return cache
+
+
+def _held_put(cache: dict, key, value) -> None:
+    if len(cache) >= HELD_CACHE:
+        cache.pop(next(iter(cache)))  # the oldest entry
+    cache[key] = value
 
 
 def _energy_inside(model, theta: np.ndarray, n: int) -> np.ndarray:
@@ -600,6 +627,85 @@ def _lm_step_np(jp: np.ndarray, r: np.ndarray, p: int, lam: float, lim: np.ndarr
     return gn, lam, step
 
 
+#: Run a held fit (``fit_theta=False``) as one compiled call
+#: (:func:`rangekit.detect._pathfit_kernels._held_fit_py`) where the compiled step runs.
+HELD_KERNEL = True
+#: The held fit's shift series stops where its next term is below this fraction of the
+#: largest value a waveform sample can take (``sum |s| / n_fft``).
+SHIFT_TOL = 1e-17
+
+
+def _shift_tables(model, theta: np.ndarray, derivs: bool = False):
+    """``(tab, nt, wc)`` (``derivs``: ``(tab, tabd, nt, wc)``): the tables of the held
+    fit's shift series at ``theta``.
+
+    ``tab[q] = IFFT(s (w - wc)^q)``, ``q = 0 .. nt``, repeated once along the grid
+    (:func:`rangekit.detect._pathfit_kernels._shift_rows_py`), ``wc`` the spectrum's
+    peak bin; ``tabd[j, q]`` the same of ``ds / dtheta_j``, ``q < nt``. ``nt`` is the
+    first ``q`` at which the series' term bound ``sum_l |s_l| (|w_l - wc| / 2)^q / q!``
+    (a shift's fraction is at most 1/2; also with a factor ``|w_l - wc|`` for the onset
+    derivative, and for each ``ds_j``) drops below ``SHIFT_TOL sum_l |s_l|``, so the
+    rows equal the inverse FFT's to rounding. Cached on the model.
+    """
+    cache = _held_cache(model)
+    key = _key("shiftd" if derivs else "shift", theta)
+    hit = cache.get(key)
+    if hit is not None:
+        return hit
+    if derivs:
+        s, ds = model.spectrum_t(theta, derivs=True)
+    else:
+        s, ds = model.spectrum_t(theta), []
+    w = -model._mjw.imag
+    mag = np.abs(s)
+    wc = float(w[int(np.argmax(mag))])
+    dw = w - wc
+    half = np.abs(dw) / 2.0
+    terms = [mag, mag * np.abs(dw), *(np.abs(d) for d in ds)]
+    refs = [SHIFT_TOL * float(t.sum()) for t in terms]
+    nt = 1
+    while nt < 60:
+        terms = [t * half / nt for t in terms]
+        if all(float(t.sum()) < r for t, r in zip(terms, refs, strict=True)):
+            break
+        nt += 1
+    m, nl = model.n_fft, len(s)
+    buf = np.zeros((1 + len(ds), nt + 1, m), dtype=np.complex128)
+    for j, spec in enumerate([s, *ds]):
+        buf[j, 0, :nl] = spec
+        for q in range(1, nt + 1):
+            buf[j, q, :nl] = buf[j, q - 1, :nl] * dw
+    d = _c2c_inverse(buf)
+    d = np.concatenate([d, d[:, :, : model.segment]], axis=2)  # a shift of n <= segment
+    hit = (d[0], np.ascontiguousarray(d[1:, :nt]), nt, wc) if derivs else (d[0], nt, wc)
+    _held_put(cache, key, hit)
+    return hit
+
+
+def _held_fit(x, model, u, theta, tol, max_iter, u_lo, u_hi) -> _State | None:
+    """:func:`fit_paths` with ``theta`` held, as one compiled call (None: the kernel
+    met a Gram matrix that is not positive definite; the caller runs the reference)."""
+    from rangekit.detect._pathfit_kernels import call
+
+    tab, nt, wc = _shift_tables(model, theta)
+    ok, u, cost, a, r, basis, gi, jac, jp = call(
+        "held_fit",
+        x,
+        tab,
+        nt,
+        wc,
+        model.n_fft,
+        u,
+        float(u_lo),
+        float(u_hi),
+        float(tol),
+        int(max_iter),
+    )
+    if not ok:
+        return None
+    return _State(u, theta, cost, a, r, basis, gi, jac, False, jp)
+
+
 def _lm_step(jp, r, p, lam, lim, kernel: bool):
     if kernel:
         from rangekit.detect._pathfit_kernels import call
@@ -633,6 +739,10 @@ def fit_paths(
     k = len(u)
     th = model.theta_start(q0, f0) if theta is None else model.theta_clip(theta)
     u_lo, u_hi = -0.5 * len(model.drive), len(x) - 4.0
+    if not fit_theta and HELD_KERNEL and _use_kernel(x) and len(x) <= model.segment:
+        st = _held_fit(x, model, u, th, tol, max_iter, u_lo, u_hi)
+        if st is not None:
+            return st
     p = k + model.n_theta if fit_theta else k
     st = _evaluate(x, model, u, th, fit_theta)
     jp = _projected(st)[:, :p]
@@ -937,10 +1047,19 @@ def _paths(
 
 def _summarize(st, seg, n0, model, sigma, k_noise, rel_threshold, lo, hi, free=True):
     """First path, information about ``theta`` and flags' inputs of a fitted segment."""
-    if not st.with_theta:
+    held = None
+    if (
+        not (st.with_theta or free)
+        and HELD_KERNEL
+        and _use_kernel(seg)
+        and len(seg) <= model.segment
+    ):
+        held = _held_blocks(seg, model, st.u, st.theta)
+    if held is None and not st.with_theta:
         st = _evaluate(seg, model, st.u, st.theta, True)
+    a, cost = (st.a, st.cost) if held is None else held[1:3]
     k = len(st.u)
-    amp = _amps(st)
+    amp = np.hypot(a[0::2], a[1::2])
     e = _energy(model, st.theta)
     snr = amp * math.sqrt(e) / sigma
     u_abs = n0 + st.u
@@ -955,46 +1074,58 @@ def _summarize(st, seg, n0, model, sigma, k_noise, rel_threshold, lo, hi, free=T
             if amp[i] >= rel_threshold * top:
                 first = int(i)
                 break
-    # Gauss-Newton blocks of the projected Jacobian: onsets (A), theta (C), cross (B).
-    jp = _projected(st)
-    ju, jt = jp[:, :k], jp[:, k:]
-    A, B, C = ju.T @ ju, ju.T @ jt, jt.T @ jt
-    gu, gt = ju.T @ st.r, jt.T @ st.r
-    try:
-        ai = np.linalg.inv(A)
-    except np.linalg.LinAlgError:
-        return None
-    S = C - B.T @ ai @ B
     p = model.n_theta
     theta_lin = st.theta.copy()
-    # One Newton step to the optimum in the onsets (~0 after a converged fit).
-    newton = float((ai @ gu)[first])
-    onset_lin = float(u_abs[first] + (newton if abs(newton) < 1.0 else 0.0))
-    gain = -(ai @ B)[first]
-    var_given = sigma**2 * float(ai[first, first])
-    try:
-        theta_hat = theta_lin + np.linalg.solve(S, gt - B.T @ ai @ gu)
+    if held is None:
+        # Gauss-Newton blocks of the projected Jacobian: onsets (A), theta (C), cross (B).
+        jp = _projected(st)
+        ju, jt = jp[:, :k], jp[:, k:]
+        A, B, C = ju.T @ ju, ju.T @ jt, jt.T @ jt
+        gu, gt = ju.T @ st.r, jt.T @ st.r
+        try:
+            ai = np.linalg.inv(A)
+        except np.linalg.LinAlgError:
+            return None
+        S = C - B.T @ ai @ B
+        # One Newton step to the optimum in the onsets (~0 after a converged fit).
+        newton = float((ai @ gu)[first])
+        gain = -(ai @ B)[first]
+        try:
+            theta_hat = theta_lin + np.linalg.solve(S, gt - B.T @ ai @ gu)
+            info = S / sigma**2
+            cov_t = np.linalg.inv(info)
+        except np.linalg.LinAlgError:
+            theta_hat, info, cov_t = theta_lin, np.zeros((p, p)), np.zeros((p, p))
+        sig_energy = float(np.sum((st.basis @ st.a) ** 2))
+    else:
+        # The same blocks from the compiled call (Cholesky inverses: equal to rounding).
+        sig_energy, ai, aib, aig, S, d, si = held[3:]
+        newton = float(aig[first])
+        gain = -aib[first]
+        theta_hat = theta_lin + d
         info = S / sigma**2
-        cov_t = np.linalg.inv(info)
-    except np.linalg.LinAlgError:
-        theta_hat, info, cov_t = theta_lin, np.zeros((p, p)), np.zeros((p, p))
+        cov_t = si * sigma**2
+    onset_lin = float(u_abs[first] + (newton if abs(newton) < 1.0 else 0.0))
+    var_given = sigma**2 * float(ai[first, first])
     if not np.all(np.isfinite(theta_hat)) or np.any(
         np.abs(theta_hat - theta_lin) > 3.0 * model.theta_step()
     ):
         theta_hat = theta_lin  # a Newton step beyond the fit's reach: keep the fit's value
-    n = len(st.r)
+    n = len(seg)
     n_par = 3 * k + (p if free else 0)
     dof = max(1, n - 2 * k - k - 2)
-    sig_energy = float(np.sum((st.basis @ st.a) ** 2))
-    misfit = (st.cost - dof * sigma**2) / sig_energy if sig_energy > 0 else 0.0
+    misfit = (cost - dof * sigma**2) / sig_energy if sig_energy > 0 else 0.0
     order = np.argsort(u_abs, kind="stable")
     onsets = u_abs[order].copy()
     first_s = int(np.flatnonzero(order == first)[0])
     onsets[first_s] = onset_lin
-    q, f0 = model.q_f0(theta_lin)
-    fit = PathFit(
-        onset=onset_lin,
-        sigma=math.sqrt(var_given),
+    # PathFit.at(theta_hat, cov_t, pooled=False) of the fit at theta_lin, in one step.
+    onset = onsets[first_s] + float(gain @ (theta_hat - theta_lin))
+    var = var_given + float(gain @ cov_t @ gain)
+    q, f0 = model.q_f0(theta_hat)
+    return PathFit(
+        onset=float(onset),
+        sigma=math.sqrt(max(var, 0.0)),
         snr=float(snr[first]),
         q=q,
         f0_hz=f0,
@@ -1002,20 +1133,29 @@ def _summarize(st, seg, n0, model, sigma, k_noise, rel_threshold, lo, hi, free=T
         amplitudes=amp[order],
         first=first_s,
         misfit=float(misfit),
-        misfit_z=float((st.cost / sigma**2 - dof) / math.sqrt(2.0 * dof)),
+        misfit_z=float((cost / sigma**2 - dof) / math.sqrt(2.0 * dof)),
         resolution=_resolution(model, st.theta),
         theta_lin=theta_lin,
         gain=gain,
         var_given=var_given,
-        theta_hat=theta_lin,
+        theta_hat=np.asarray(theta_hat, dtype=np.float64),
         info=info,
         family=model.family,
-        chi2=float(st.cost / sigma**2),
+        chi2=float(cost / sigma**2),
         n_par=n_par,
         q_of=model.q_f0,
         n0=int(n0),
     )
-    return fit.at(theta_hat, cov_t, pooled=False)
+
+
+def _held_blocks(seg, model, u, theta):
+    """The compiled part of :func:`_summarize` for a held fit (None: not positive
+    definite somewhere; the caller runs the reference)."""
+    from rangekit.detect._pathfit_kernels import call
+
+    tab, tabd, nt, wc = _shift_tables(model, theta, derivs=True)
+    out = call("held_summary", seg, tab, tabd, nt, wc, model.n_fft, np.ascontiguousarray(u))
+    return out if out[0] else None
 
 
 def pool_fits(fits, *, max_chi2: float = 4.0):

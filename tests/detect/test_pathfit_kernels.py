@@ -2,12 +2,15 @@
 
 from __future__ import annotations
 
+import contextlib
 import math
 
 import numpy as np
 import pytest
 
 numba = pytest.importorskip("numba")
+
+from pathfit_signals import FS, received  # noqa: E402
 
 from rangekit.detect import _pathfit_kernels as K  # noqa: E402
 from rangekit.detect import pathfit as P  # noqa: E402
@@ -121,3 +124,118 @@ def test_the_compiled_step_runs_by_the_recording_length_not_the_imports():
     probe(np.zeros(P.KERNEL_MIN_SAMPLES - 1))
     probe(np.zeros(P.KERNEL_MIN_SAMPLES))
     assert seen == [False, True]
+
+
+# The held fit as one compiled call (shift series instead of inverse FFTs) against the
+# numpy reference: seeded signals of one and two paths, through Tx and Rx resonators.
+HELD_CASES = [
+    # (Q of the signal, onsets, amplitudes, held Q, noise, offset of the start)
+    (12.0, [80.3], [1.0], 12.0, 0.01, 0.0),
+    (6.0, [77.7], [0.02], 7.0, 0.002, 1.6),  # a held Q off the truth, 2 samples off
+    (18.0, [90.45, 121.2], [1.0, 0.6], 18.0, 0.01, 0.0),  # a reflection in the burst
+    (9.0, [60.9, 150.1], [1.0, -0.5], 9.0, 0.02, -1.2),  # two paths apart, sign flipped
+    (4.0, [-20.4, 30.0], [0.5, 1.0], 4.0, 0.01, 0.7),  # a path begun before the segment
+]
+
+
+def _held_signal(i):
+    q, onsets, amps, q_held, noise, off = HELD_CASES[i]
+    model = P.ResonatorModel.for_burst(fs=FS)
+    x = received(q, onsets, amps, n=model.segment)
+    x = x + noise * np.random.default_rng(40 + i).standard_normal(len(x))
+    return model, x, model.theta_start(q_held), [t + off for t in onsets], noise
+
+
+@contextlib.contextmanager
+def _step(monkeypatch, compiled: bool):
+    monkeypatch.setattr(P, "USE_KERNEL", compiled)
+    with P.compiled_step(True):
+        yield
+    monkeypatch.setattr(P, "USE_KERNEL", True)
+
+
+@pytest.mark.parametrize("i", range(len(HELD_CASES)))
+def test_the_compiled_held_fit_equals_the_numpy_reference(i, monkeypatch):
+    model, x, th, u0, sigma = _held_signal(i)
+    used = []
+    real = P._held_fit
+    monkeypatch.setattr(P, "_held_fit", lambda *a: used.append(1) or real(*a))
+    got = {}
+    for compiled in (True, False):
+        with _step(monkeypatch, compiled):
+            got[compiled] = P.fit_paths(x, model, u0, theta=th, fit_theta=False,
+                                        tol=1e-3 * sigma**2)  # fmt: skip
+    assert used == [1]  # the compiled call ran once, the reference not at all
+    a, b = got[True], got[False]
+    assert not a.with_theta and np.array_equal(a.theta, b.theta)
+    # measured: onsets to 9e-14 samples, amplitudes to 2e-12 and cost to 5e-15 relative
+    np.testing.assert_allclose(a.u, b.u, rtol=0, atol=1e-6)
+    np.testing.assert_allclose(a.a, b.a, rtol=1e-8, atol=0)
+    assert a.cost == pytest.approx(b.cost, rel=1e-8)
+    np.testing.assert_allclose(a.r, b.r, rtol=0, atol=1e-8 * np.max(np.abs(x)))
+    np.testing.assert_allclose(P._projected(a), P._projected(b), rtol=1e-7, atol=1e-9)
+
+
+@pytest.mark.parametrize("i", range(len(HELD_CASES)))
+def test_a_held_fit_arrival_compiled_equals_the_numpy_reference(i, monkeypatch):
+    """The whole held fit of an arrival: its LM loop and its summary (the ``theta``
+    columns, the Gauss-Newton blocks and their Cholesky inverses) compiled."""
+    model, x, th, u0, sigma = _held_signal(i)
+    x = np.concatenate([np.zeros(200), x])  # room before the segment
+    lag = 200.0 + min(u0)
+    fits = {}
+    for compiled in (True, False):
+        with _step(monkeypatch, compiled):
+            fits[compiled] = P.fit_arrival(x, lag, model=model, sigma=sigma, theta=th,
+                                           hold=True)  # fmt: skip
+    a, b = fits[True], fits[False]
+    assert a.n_paths == b.n_paths and a.first == b.first
+    # measured: onsets to 2e-13 samples, the rest to 1e-13 relative (gain 1e-13 absolute)
+    np.testing.assert_allclose(a.onsets, b.onsets, rtol=0, atol=1e-6)
+    assert a.onset == pytest.approx(b.onset, abs=1e-6)
+    np.testing.assert_allclose(a.amplitudes, b.amplitudes, rtol=1e-8, atol=0)
+    for name in ("sigma", "chi2", "misfit_z", "var_given", "snr"):
+        assert getattr(a, name) == pytest.approx(getattr(b, name), rel=1e-8), name
+    np.testing.assert_allclose(a.info, b.info, rtol=1e-8, atol=1e-12 * np.max(np.abs(b.info)))
+    np.testing.assert_allclose(a.gain, b.gain, rtol=1e-7, atol=1e-9)
+    np.testing.assert_allclose(a.theta_hat, b.theta_hat, rtol=1e-10, atol=0)
+
+
+@pytest.mark.parametrize("u", [0.0, 0.5, -0.5, 37.25, -41.7, 300.49])
+def test_the_shift_series_gives_the_inverse_fft_rows(u):
+    """Rows of the held spectrum at a fractional onset (either side of a rounding, before
+    the grid's start: a circular shift) from the tables, equal to the inverse FFTs."""
+    model = P.ResonatorModel.for_burst(fs=FS)
+    th = model.theta_start(8.0)
+    n = model.segment
+    tab, nt, wc = P._shift_tables(model, th)
+    rows = np.empty((2, 2, n), dtype=np.complex128)
+    uu = np.array([u, u + 13.3])
+    K.call("shift_rows", tab, nt, wc, model.n_fft, uu, n, rows)
+    s = model.spectrum_t(th)
+    ph = np.exp(np.multiply.outer(uu, model._mjw))
+    want = np.fft.ifft(np.array([s * ph, s * model._mjw * ph]), n=model.n_fft, axis=2)[..., :n]
+    for j in range(2):
+        scale = np.max(np.abs(want[j]))
+        # measured ~2e-16 of the row's peak
+        np.testing.assert_allclose(rows[j], want[j], rtol=0, atol=1e-12 * scale)
+
+
+def test_a_singular_held_fit_falls_back_to_the_reference(monkeypatch):
+    """A Gram matrix that is not positive definite (here: a zero spectrum, no waveform):
+    the compiled call says so, and fit_paths then runs the per-evaluation path, as it
+    does with the held kernel switched off."""
+    model, x, th, u0, _ = _held_signal(2)
+    tab, nt, wc = P._shift_tables(model, th)
+    ok = K.call("held_fit", x, np.zeros_like(tab), nt, wc, model.n_fft, np.array(u0),
+                -50.0, 300.0, 0.0, 30)[0]  # fmt: skip
+    assert not ok
+    got = {}
+    for refuse in (True, False):
+        if refuse:
+            monkeypatch.setattr(P, "_held_fit", lambda *a: None)
+        else:
+            monkeypatch.setattr(P, "HELD_KERNEL", False)
+        with P.compiled_step(True):
+            got[refuse] = P.fit_paths(x, model, u0, theta=th, fit_theta=False)
+    assert np.array_equal(got[True].u, got[False].u) and got[True].cost == got[False].cost
