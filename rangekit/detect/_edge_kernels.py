@@ -583,6 +583,14 @@ def _drift_line_py(ks, est, w, members, m, lim):
     return mean, min(max(slope, -lim), lim), kbar
 
 
+def _drift_half_py(k: int, k_b: int, spacing: float) -> int:
+    """Half-width, samples, within which burst ``k`` of ``k_b`` is sought about the
+    beep's joint edge: 2 (rounding of the spacing, timing) or, where larger, the drift of
+    :data:`MAX_DRIFT` from the beep's middle burst to burst k (``changepoint._fit_beep``;
+    2 for the default beep: 200 ppm of 5000 samples is 1 a burst)."""
+    return max(2, int(math.ceil(MAX_DRIFT * spacing * abs(k - 0.5 * (k_b - 1)))))
+
+
 def _pair_of(c: int, m: int) -> tuple[int, int]:
     """The pair ``(i, j)``, ``i < j < m``, at index ``c`` of ``numpy.triu_indices(m, 1)``'s
     order."""
@@ -920,7 +928,7 @@ def _beeps_py(
                 if f_raw.max() >= f_raw_min:
                     for j in range(width):
                         stats[k, j] = scale_raw * f_raw[j]
-            _widen_py(stats[k], 2, widened[k])
+            _widen_py(stats[k], _drift_half_py(k, k_b, spacing), widened[k])
             # No onset can gather min_bursts bursts reaching f_min any more: the anchor
             # gives no beep (the reference finds none either), skip its other bursts.
             top = 0
@@ -957,7 +965,8 @@ def _beeps_py(
         for k in range(k_b):
             have[k] = False
             clipped[k] = False
-            j0, j1 = max(0, u - 2), min(width, u + 3)
+            hw = _drift_half_py(k, k_b, spacing)
+            j0, j1 = max(0, u - hw), min(width, u + hw + 1)
             jb = j0
             for j in range(j0 + 1, j1):
                 if stats[k, j] > stats[k, jb]:
@@ -1212,6 +1221,7 @@ _HELPERS = (
     _first_edge_py,
     _median_py,
     _pair_of,
+    _drift_half_py,
     _drift_line_py,
     _better_line,
     _combine_py,

@@ -38,6 +38,7 @@ import numpy as np
 
 from rangekit import _validate as V
 from rangekit.detect import _edge_kernels
+from rangekit.detect._edge_kernels import _drift_half_py as _drift_half
 from rangekit.detect._kernels import band_energy
 from rangekit.detect.condition import (
     active_floor,
@@ -330,13 +331,16 @@ def _fit_beep(
 
     The first path is chosen once for the whole beep: each burst's edge statistic over
     ``[-n_win/2 - lookback, n_win + hop]`` around its expected place ``a + k spacing`` is
-    widened by +-2 samples (clock rates, rounding of the spacing) and summed over the
+    widened by +-2 samples (rounding of the spacing, timing) or, where more, by the drift
+    of 200 ppm of clock rate from the middle burst to burst k (``_edge_kernels.
+    _drift_half_py``: a beep with long spacings on a fast clock) and summed over the
     bursts; the onset is the earliest local maximum of the sum that reaches a tenth of its
     largest (:func:`rangekit.detect.refine.first_peak`). The direct path is at the same
     place in every burst, while a reverberant "edge" (the decaying tail of an earlier
     burst beating with a reflection) is at a random one, so the sum keeps the first and
     washes out the second. Only onsets where ``min_bursts`` bursts reach the per-burst
-    threshold count. Each burst is then refined near that place on its own; a burst whose
+    threshold count. Each burst is then refined near that place (within its widening) on
+    its own; a burst whose
     statistic there stays below the threshold counts as missing.
     """
     spacing = beep.spacing_s * fs
@@ -352,7 +356,7 @@ def _fit_beep(
         )
         segs.append((seg, off, p))
         stats.append(f)
-        widened.append(_widen(f, 2))
+        widened.append(_widen(f, _drift_half(k, beep.n_bursts, spacing)))
     joint = np.sum(widened, axis=0)
     fits: list[EdgeFit | None] = [None] * beep.n_bursts
     clipped = [False] * beep.n_bursts
@@ -382,7 +386,8 @@ def _fit_beep(
         return fits, clipped, None
 
     for k, ((seg, off, p), f) in enumerate(zip(segs, stats, strict=True)):
-        j0, j1 = max(0, u - 2), min(width, u + 3)
+        hw = _drift_half(k, beep.n_bursts, spacing)
+        j0, j1 = max(0, u - hw), min(width, u + hw + 1)
         j = j0 + int(np.argmax(f[j0:j1]))
         if f[j] < f_min:
             continue
@@ -881,19 +886,21 @@ def _combine(
 ) -> tuple[float, float, float, float, np.ndarray, int] | None:
     """One beep onset from its bursts' fits, or None when too few of them agree.
 
-    Each found burst k gives an estimate of the beep onset, its onset minus k * spacing.
-    Two estimates agree when they differ by at most the timing noise (2 samples at 44.1
-    kHz and 4 sigma) and :data:`MAX_DRIFT` of clock rate over the spacings between them.
-    The bursts agreeing with the best-supported one (the earliest such group on a tie: a
-    burst timed on a reflection is late) give a drift line (:func:`_drift_line`, slope
-    within +-200 ppm); bursts further than their timing noise from that line are rejected
-    (the line refitted on the rest) and the rest averaged with inverse-variance weights,
-    the 1-sigma scaled up by their reduced chi-square about that mean. So a far beep
-    recorded 150 ppm fast keeps all its bursts at any spacing, while a burst off the line
-    is rejected whichever it is. The onset stays the weighted mean of the estimates: under
-    a rate mismatch r it lies ``r kbar spacing`` after burst 0's (``kbar`` the bursts'
-    weighted mean index), which two-way ranging cancels (each far arrival carries its
-    clock pair's r with the opposite sign) and the chi-square puts into sigma.
+    Each found burst k gives an estimate of the beep onset, its onset minus k * spacing;
+    under a clock-rate mismatch r between player and recorder they lie on a line of slope
+    ``r spacing`` a burst. Each pair of bursts (slope held within :data:`MAX_DRIFT`) and
+    each burst alone (slope 0) proposes such a line; the bursts within their timing noise
+    (2 samples at 44.1 kHz and 4 sigma) of it give its least-squares drift line
+    (:func:`_drift_line`), whose bursts within their timing noise are its members. The
+    line with most members wins (:func:`_better_line`: on a tie the best fit, then the
+    earliest mean, since a burst timed on a reflection is late); the other bursts are
+    rejected, the members averaged with inverse-variance weights, the 1-sigma scaled up
+    by their reduced chi-square about that mean. So a far beep recorded 150 ppm fast keeps
+    all its bursts at any spacing, and a burst off the line is rejected whichever it is.
+    The onset stays the members' mean estimate: under a rate mismatch r it lies ``r kbar
+    spacing`` after burst 0's (``kbar`` the members' weighted mean index), which two-way
+    ranging cancels when both far beeps keep the same bursts (they carry +-r) and the
+    chi-square puts into sigma (``docs/theory/beepbeep.md`` step 8).
 
     Returns ``(onset, sigma, snr_db, confidence, burst_onsets, flags, strength)``;
     ``strength`` is the summed edge statistic of the kept bursts.
