@@ -44,7 +44,11 @@ def batch_options(
         beepbeep = {"detector": detector, "temp_c": temp_c, "speed_m_s": speed}
     # The options describe sessions of --scheme; sessions whose sidecar names another
     # ultrasonic scheme get that scheme's defaults (and their sidecar's values).
-    setups = {s: ultrasonic_setup(kw if s == scheme else {}, scheme=s) for s in SCHEMES}
+    # A lab's probe: any number of receivers (unless --channels names them).
+    setups = {
+        s: ultrasonic_setup(kw if s == scheme else {}, scheme=s, any_receivers=template is not None)
+        for s in SCHEMES
+    }
     ultra = _probe_and_calibration(template, calibration, scheme, sd, kw, beepbeep, setups)
     for s in ultra:
         ultra[s] = replace(ultra[s], medium=Medium(temp_c=temp_c, speed_m_s=speed))
@@ -75,8 +79,6 @@ def _probe_and_calibration(template, calibration, scheme, sd, kw, beepbeep, setu
     if probe is not None:
         beepbeep["probe"] = probe
         for s, v in setups.items():
-            if s != scheme or kw.get("channels") is None:
-                v = replace(v, channels=None)  # a lab's probe: any number of receivers
             ultra[s] = UltrasonicOptions(setup=v, probe=probe)
     cal = read_calibration(calibration, scheme)
     if cal is not None:

@@ -125,7 +125,6 @@ def calibrate_cmd(
       rangekit calibrate --scheme oneway --template chirp.wav --distance 2 r*.wav -o ow_cal.json
       rangekit range --template sweep.wav --calibration cal.json exchange.wav
     """
-    from dataclasses import replace
 
     from rangekit_cli._options import load_template
 
@@ -149,9 +148,8 @@ def calibrate_cmd(
     else:
         if kw.get("latency") is not None:
             raise click.UsageError("--latency is what a one-way calibration fits; leave it out")
-        setup = ultrasonic_setup(kw, scheme=scheme)
-        if kw.get("channels") is None:
-            setup = replace(setup, channels=None)  # a calibration rig: any receivers
+        # a calibration rig: any receivers
+        setup = ultrasonic_setup(kw, scheme=scheme, any_receivers=True)
         args = {"setup": setup}
     with progress(len(recs), "calibrate", unit="files") as bar:
         cal = calibrate_recordings(

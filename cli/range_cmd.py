@@ -155,11 +155,8 @@ def _two_way(self_distance, clock_ppm, detector, clock_rate, cal, probe, kw) -> 
 
 def _ultrasonic(files, scheme, series, probe, kw):
     """run_range's one-way / echo configuration object from the options."""
-    from dataclasses import replace
-
-    setup = ultrasonic_setup(kw, scheme=scheme)
-    if probe is not None and kw.get("channels") is None:
-        setup = replace(setup, channels=None)  # a lab's probe: any number of receivers
+    # a lab's probe: any number of receivers
+    setup = ultrasonic_setup(kw, scheme=scheme, any_receivers=probe is not None)
     if series and len(files) != 1:
         raise click.UsageError(f"--series --scheme {scheme} takes one FILE, got {len(files)}")
     if series and setup.period_s is None:

@@ -208,14 +208,17 @@ def refuse_ultrasonic_options(kw: dict, *, remove: bool = True) -> None:
             raise click.UsageError(f"{opt} applies to --scheme oneway and echo only")
 
 
-def ultrasonic_setup(kw: dict, *, scheme: str) -> OneWaySetup | EchoSetup:
+def ultrasonic_setup(
+    kw: dict, *, scheme: str, any_receivers: bool = False
+) -> OneWaySetup | EchoSetup:
     """The :class:`OneWaySetup` or :class:`EchoSetup` of the options in ``kw``.
 
     ``kw`` holds the values of :func:`ultrasonic_options` (and of the beep options,
     which, like one-way-only options with ``scheme="echo"``, are usage errors naming the
     option). Only the options given reach the object
     (:func:`rangekit.ranging.ultrasonic_setup.ultrasonic_setup`): the rest are its
-    defaults.
+    defaults. With ``any_receivers`` (a lab's probe, a calibration rig) the setup takes
+    as many receivers as the recordings hold unless ``--channels`` names them.
     """
     from rangekit.ranging.ultrasonic_setup import ultrasonic_setup as build
 
@@ -227,7 +230,7 @@ def ultrasonic_setup(kw: dict, *, scheme: str) -> OneWaySetup | EchoSetup:
         for k in ("latency", "tx_order"):
             if kw.get(k) is not None:
                 raise click.UsageError(f"--{k.replace('_', '-')} applies to --scheme oneway only")
-    return build(
+    setup = build(
         scheme,
         code=code,
         carrier_hz=kw.get("carrier"),
@@ -240,3 +243,8 @@ def ultrasonic_setup(kw: dict, *, scheme: str) -> OneWaySetup | EchoSetup:
         min_range_m=kw.get("min_range"),
         max_range_m=kw.get("max_range"),
     )
+    if any_receivers and kw.get("channels") is None:
+        from dataclasses import replace
+
+        setup = replace(setup, channels=None)
+    return setup
