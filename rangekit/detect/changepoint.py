@@ -20,11 +20,12 @@ Notes
 4. Each such change point brackets the onset to about one window; the edge fit times it.
 5. Bursts are grouped into beeps: a beep needs its first burst and at least ``min_bursts``
    bursts within half a window plus a hop of their expected place (k * spacing). Each burst
-   gives an estimate of the beep onset (its onset minus k * spacing); the centre is the weighted
-   mean of the estimates agreeing with the best-supported one (the earliest such mean on
-   a tie: a burst timed on a reflection is late); bursts more than a few samples from it
-   are rejected, and the rest are averaged with inverse variance weights. A beep that
-   starts inside an earlier beep is that beep's echo and is dropped.
+   gives an estimate of the beep onset (its onset minus k * spacing); a clock-rate mismatch
+   between player and recorder puts these on a line, so bursts more than a few samples off
+   the best-supported drift line (slope within 200 ppm; the earliest on a tie: a burst
+   timed on a reflection is late) are rejected, and the rest are averaged with inverse
+   variance weights (:func:`_combine`). A beep that starts inside an earlier beep is that
+   beep's echo and is dropped.
 """
 
 from __future__ import annotations
