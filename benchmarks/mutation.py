@@ -113,6 +113,12 @@ TESTS: dict[str, tuple[str, ...]] = {
         "tests/detect/test_pathfit.py",
         "tests/detect/test_pathfit_mutation.py",
     ),
+    "rangekit/detect/fitted.py": (
+        "tests/detect/test_stagger.py",
+        "tests/ranging/test_oneway_mutation.py",
+        "tests/ranging/test_tof_mutation.py",
+        "tests/detect/test_fitted_mutation.py",
+    ),
     "rangekit/detect/_pathfit_kernels.py": ("tests/detect/test_pathfit_kernels.py",),
     "rangekit/detect/_coherent.py": (
         "tests/detect/test_template_coherent.py",
@@ -222,6 +228,28 @@ EQUIVALENT: dict[str, dict[tuple, str]] = {
          "True -> False"): "order_terms gives one term per channel: strict never raises",
         ("found = dict(zip(arr.window.tolist(), range(len(arr)), strict=True))",
          "True -> False"): "both have len(arr) items: strict never raises",
+    },
+    "rangekit/detect/fitted.py": {
+        ("acc[3] = fit.theta_hat", "3 -> 4"):
+            "never reached: each counted info is S / sigma^2 (S a Schur complement of a Gram "
+            "matrix) with det > 0, so positive definite, and so is their sum: solve never raises",
+        ("if fs_ is not None and fs_.n0 == fr.n0 and fr.snr >= low:", ">= -> >"):
+            "a tie of a fit's SNR (float) with the low-SNR level, never met",
+        ("for got, key in zip(fits, keys, strict=True):", "True -> False"):
+            "fits and keys are appended together, one per row: strict never raises",
+        ("for i, (k, f) in enumerate(zip(keys, chosen, strict=True)):", "True -> False"):
+            "chosen is built one per entry of fits, as long as keys: strict never raises",
+        ("for i, (k, f) in enumerate(zip(keys, chosen, strict=True))", "True -> False"):
+            "chosen is built one per entry of fits, as long as keys: strict never raises",
+        ("for i, f in zip(idx, pooled, strict=True):", "True -> False"):
+            "pool_fits returns one fit per fit given: strict never raises",
+        ("good = [x for x, o in zip(sh, ok, strict=True) if o]", "True -> False"):
+            "ok is built one per shape of sh: strict never raises",
+        ("for c, o in zip(chans, ok, strict=True):", "True -> False"):
+            "sh (and so ok) is built one per channel of chans: strict never raises",
+        ("for i, (key, fam) in enumerate(zip(fit.group, fit.family, strict=True)):",
+         "True -> False"): "fit_channel's ChannelFit has one group label and one family per "
+            "arrival (keys and chosen): strict never raises",
     },
     "rangekit/detect/_coherent.py": {
         ("while b - a > 1e-4:", "> -> >="): "the interval, 2 g^k wide, is never exactly 1e-4",
