@@ -36,10 +36,11 @@ room or transducer (theory and measurements: ``docs/theory/probes.md``):
    probes phase-coherently, :mod:`rangekit.detect._coherent`); 1-sigma
    ``sqrt(crb^2 + interp^2 + shape^2 + def^2 + td^2 + leak^2)``: the Cramér–Rao bound,
    the interpolation error of the weighted peak shape, the shift an unmodelled component
-   of the peak (unresolved multipath, transducer mismatch) can cause, the two timings'
-   disagreement, the pull of later paths' range side lobes (:func:`_leakage`; removed
-   from the onset where it is small, and kept in sigma), and the transducers' unknown
-   group delay in the probe's band
+   of the peak (unresolved multipath, transducer mismatch) can cause (what neither the
+   path nor the CLEANed other paths explain, :func:`_unexplained`), the two timings'
+   disagreement beyond their own errors, the pull of later paths' range side lobes
+   (:func:`_leakage`; removed from the onset where it is small, and kept in sigma), and
+   the transducers' unknown group delay in the probe's band
    (:func:`transducer_sigma`; also in ``Arrivals.sigma_transducer``, which two-way
    ranging leaves out because it cancels there).
 7. **Flags** (:data:`rangekit.types.ARRIVAL_FLAGS`): ``clipped``, ``low_snr``,
@@ -306,8 +307,14 @@ def detect_template(
     envelope's energy within the main lobe around the first path that the self response
     does not explain, beyond the noise's share: by Cauchy–Schwarz an unmodelled
     component of relative energy ``eps`` shifts a correlation peak by at most
-    ``sqrt(eps) / (2 pi beta)`` (derivation in ``docs/theory/probes.md``); ``s_def`` the
-    disagreement of the phase-coherent and envelope timings of a wide probe; ``s_td =
+    ``sqrt(eps) / (2 pi beta)`` (derivation in ``docs/theory/probes.md``). For the
+    envelope timing's share ``1 - w``, ``eps`` is read at the onset the pull was taken
+    from, with the other paths of ``s_leak`` subtracted (:func:`_unexplained`): their
+    side lobes in the main lobe *are* the pull, which ``s_leak`` holds, and were
+    counted twice before (17-20 kHz in rooms: sigma 4x the errors). ``s_def`` the
+    disagreement of the phase-coherent and envelope timings of a wide probe beyond the
+    envelope's noise and both interpolation errors (``s_interp`` of each: the
+    envelope's alone is 0.01 samples on a 20 Hz-20 kHz sweep); ``s_td =
     (1 - w) transducer_sigma(beta_w)`` the transducers' in-band group delay
     (:func:`transducer_sigma`), ``w`` the weight of the phase-coherent timing (the pulse's
     peak, which is the reference: 0 for narrow probes); ``s_leak`` the first-order pull
@@ -426,21 +433,37 @@ def detect_template(
             w = 0.0 if coh is None else coherent_weight(coh[1])
             if w > 0.0:
                 d = coh[0] - lag
-                s_def = math.sqrt(max(0.0, d**2 - s_crb**2))
+                # Beyond what the two timings' own errors explain: the envelope's noise
+                # and the interpolation errors of both (properties of the filter).
+                own = s_crb**2 + wf.interp_rms**2 + wf.coherent_rms**2
+                s_def = math.sqrt(max(0.0, d**2 - own))
                 s_coh = 1.0 / (2.0 * math.pi * wf.f_rms * snr) if snr > 0 else math.inf
                 s_crb = w * s_coh + (1.0 - w) * s_crb
                 s_interp = w * wf.coherent_rms + (1.0 - w) * s_interp
                 lag += w * d
         j = int(round(lag))
         eps, ambiguous_near = _shape(c, j, lag - j, wf, floor)
-        s_shape = math.sqrt(eps) / (2.0 * math.pi * wf.beta)
         s_td = (1.0 - w) * s_td_env / wf.beta
         # The pull is the envelope peak's: the phase-coherent share (w) is not moved.
-        s_leak = (1.0 - w) * _leakage(c, j, lag - j, wf, k_noise * f_search)
+        paths = _other_paths(c, j, lag - j, wf, k_noise * f_search)
+        pull = (1.0 - w) * _leakage(c, j, lag - j, wf, paths)
+        s_leak = pull
         if abs(s_leak) <= LEAK_CORRECT_LOBE * wf.half_lobe:
             lag -= s_leak  # first order holds: a fraction of the main lobe
             s_leak *= LEAK_RESIDUAL
         s_leak = abs(s_leak)
+        # The shape term: what neither the path nor the other paths explain at the model's
+        # peak. The envelope's share is read after the pull (at lag - pull, with the
+        # CLEANed paths subtracted: their pull is s_leak's, not counted twice); the
+        # phase-coherent share, which the pull does not move, on c itself.
+        s_shape = 0.0
+        if w > 0.0:
+            s_shape += w * math.sqrt(eps) / (2.0 * math.pi * wf.beta)
+        if w < 1.0:
+            lm = lag - (pull if abs(pull) > LEAK_CORRECT_LOBE * wf.half_lobe else 0.0)
+            jm = int(round(lm))
+            eps_m = _unexplained(c, jm, lm - jm, wf, floor, paths)
+            s_shape += (1.0 - w) * math.sqrt(eps_m) / (2.0 * math.pi * wf.beta)
         sigma = math.sqrt(s_crb**2 + s_interp**2 + s_shape**2 + s_def**2 + s_td**2 + s_leak**2)
         bits = 0
         if clip_cum is not None:
@@ -672,48 +695,67 @@ def _shape(c: np.ndarray, j: int, d: float, wf: _Filter, floor: float) -> tuple[
     return eps, rival
 
 
-def _leakage(c: np.ndarray, j: int, d: float, wf: _Filter, thr: float) -> float:
-    """Shift of the chosen path's envelope peak by other paths' range side lobes, samples.
+def _other_paths(
+    c: np.ndarray, j: int, d: float, wf: _Filter, thr: float
+) -> list[tuple[complex, int]]:
+    """The other paths within the self response's reach of the path at ``j + d``:
+    ``(amplitude, lag)`` of each, by a few CLEAN steps (Högbom 1974).
 
-    The path at ``j + d`` is ``alpha R(l - j - d)``; the other paths within the self
-    response's reach are taken from the residual by a few CLEAN steps (Högbom 1974: the
-    strongest residual peak above ``thr`` outside two main lobes is a path ``a_p R(l -
-    p)``, subtracted, repeated). To first order in their amplitudes the envelope peak
-    moves by ``delta = -g'(j) / (|alpha|^2 |R_0| |R|''_0)``, ``g(l) = Re{conj(alpha R(l - j
-    - d)) sum_p a_p R(l - p)}`` (from ``d|c|^2/dl = 0``), returned signed (the shape
-    term covers the main lobe, this the side lobes beyond it). Measured on two paths
-    1.5-5 ms apart at 0.5-2x: the estimate is 0.8-1.0x the actual pull.
+    The path is ``alpha R(l - j - d)`` (``alpha`` from ``c[j]``); from the residual the
+    strongest peak above ``thr`` outside two main lobes is a path ``a_p R(l - p)``,
+    subtracted, repeated up to :data:`LEAK_PATHS` times.
     """
     R = wf.self_resp
     m = len(R) // 2
     K2 = 2 * wf.half_lobe
     lo, hi = max(1, j - m + 1), min(len(c) - 1, j + m)
     if hi - lo < 2 * K2 + 3 or m < 2:
-        return 0.0
+        return []
     Rs = _shifted(R, d)
     idx = np.arange(lo, hi)
     alpha = c[j] / Rs[m]
     if abs(alpha) == 0.0:
-        return 0.0
+        return []
     res = c[lo:hi] - alpha * Rs[idx - j + m]
     far = np.abs(idx - j) > K2
-    amps, lags = [], []
+    paths: list[tuple[complex, int]] = []
     for _ in range(LEAK_PATHS):
         e = np.where(far, np.abs(res), 0.0)
         k = int(np.argmax(e))
         if e[k] < thr:
             break
         p = int(idx[k])
-        a = res[k] / R[m]
-        amps.append(a)
-        lags.append(p)
+        a = complex(res[k] / R[m])
+        paths.append((a, p))
         ok = np.abs(idx - p) < m
         res[ok] -= a * R[idx[ok] - p + m]
-    if not amps:
+    return paths
+
+
+def _leakage(
+    c: np.ndarray, j: int, d: float, wf: _Filter, paths: list[tuple[complex, int]]
+) -> float:
+    """Shift of the chosen path's envelope peak by other paths' range side lobes, samples.
+
+    The path at ``j + d`` is ``alpha R(l - j - d)``; ``paths`` the others within the self
+    response's reach (:func:`_other_paths`). To first order in their amplitudes the
+    envelope peak moves by ``delta = -g'(j) / (|alpha|^2 |R_0| |R|''_0)``, ``g(l) =
+    Re{conj(alpha R(l - j - d)) sum_p a_p R(l - p)}`` (from ``d|c|^2/dl = 0``), returned
+    signed (the shape term covers what the paths leave unexplained, this their pull).
+    Measured on two paths 1.5-5 ms apart at 0.5-2x: the estimate is 0.8-1.0x the actual
+    pull.
+    """
+    R = wf.self_resp
+    m = len(R) // 2
+    if not paths or m < 2 or j < 1 or j + 1 >= len(c):
+        return 0.0
+    Rs = _shifted(R, d)
+    alpha = c[j] / Rs[m]
+    if abs(alpha) == 0.0:
         return 0.0
     g = []
     for t in (j - 1, j + 1):
-        other = sum(a * R[t - p + m] for a, p in zip(amps, lags, strict=True) if abs(t - p) < m)
+        other = sum(a * R[t - p + m] for a, p in paths if abs(t - p) < m)
         g.append(float((np.conj(alpha * Rs[m + t - j]) * other).real))
     dg = 0.5 * (g[1] - g[0])
     env = np.abs(R[m - 1 : m + 2])
@@ -721,6 +763,30 @@ def _leakage(c: np.ndarray, j: int, d: float, wf: _Filter, thr: float) -> float:
     if curv >= 0.0:
         return 0.0
     return -dg / (abs(alpha) ** 2 * float(env[1]) * curv)
+
+
+def _unexplained(
+    c: np.ndarray, j: int, d: float, wf: _Filter, floor: float, paths: list[tuple[complex, int]]
+) -> float:
+    """:func:`_shape`'s unexplained fraction at ``j + d`` once ``paths`` are subtracted.
+
+    The other paths (:func:`_other_paths`) are a model of the arrival too: their side
+    lobes inside the main lobe and the shift of its peak that they cause are
+    :func:`_leakage`'s, so they are taken out of ``c`` over the window :func:`_shape`
+    reads before the fit (at the onset the pull has been removed from).
+    """
+    R = wf.self_resp
+    m = len(R) // 2
+    K2 = 2 * wf.half_lobe
+    lo, hi = j - K2, j + K2 + 1
+    if lo < 0 or hi > len(c):
+        return 0.0
+    seg = c[lo:hi].copy()
+    idx = np.arange(lo, hi)
+    for a, p in paths:
+        ok = np.abs(idx - p) < m
+        seg[ok] -= a * R[idx[ok] - p + m]
+    return _shape(seg, K2, d, wf, floor)[0]
 
 
 def _subband_edges(band: tuple[float, float], fs: float) -> np.ndarray:

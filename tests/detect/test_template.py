@@ -109,10 +109,12 @@ def test_a_later_paths_side_lobe_pull_is_removed_and_left_in_sigma(name):
     path's envelope peak through its range side lobes (``_leakage``: the first-order pull
     of the CLEANed later paths, removed and kept in sigma). Measured: 17-20 kHz |error|
     0.018-0.148 samples (0.041-0.708 before), 2-6 kHz 0.007-0.100 (0.002-0.460), every
-    one within 2 sigma (transducer term off)."""
+    one within 2 sigma (transducer term off). The shape term no longer counts that pull a
+    second time (``_unexplained``): 17-20 kHz |e| / sigma 0.28-0.94 (0.02-0.49 before;
+    sigma 0.89 samples for an error of 0.018 at 1.5 ms, 1x), 2-6 kHz 0.29-0.54."""
     p = PROBES[name]()
     n = len(p.samples)
-    errs = []
+    errs, zs = [], []
     for delay_ms, g in [(3.0, 2.0), (1.5, 1.0), (5.0, 1.5), (3.0, 0.5)]:
         s0 = 2000.3
         x = _place(p.samples, [s0, s0 + delay_ms * 1e-3 * FS], [1.0, g], 2000 + 3 * n)
@@ -121,7 +123,10 @@ def test_a_later_paths_side_lobe_pull_is_removed_and_left_in_sigma(name):
         e = a.onset[0] - s0
         assert abs(e) <= 2 * a.sigma[0], (delay_ms, g, e, a.sigma[0])
         errs.append(abs(e))
+        zs.append(abs(e) / a.sigma[0])
     assert max(errs) <= 0.3  # measured 0.148 (17-20 kHz, 3 ms, 2x); before 0.708
+    # Not cautious: measured max 0.94 for 17-20 kHz (0.49 before), 0.54 for 2-6 kHz (0.52).
+    assert max(zs) >= {"17-20k": 0.7, "2-6k short": 0.3}[name]
 
 
 def test_expected_keeps_the_strongest_arrivals_in_time_order():
