@@ -239,18 +239,20 @@ def _held_fit_py(
     at most 4 samples, damping ``1e-3`` raised tenfold on a rejected step and lowered
     threefold on an accepted one, the same stopping rules), each evaluation the rows of
     :func:`_shift_rows_py` and the step after them of :func:`_vp_py`. Returns ``(ok, u,
-    cost, a, r, basis, gram_inv, jac, jp)``; ``ok`` False if a Gram matrix was not
+    cost, a, r, basis, gram_inv, jac, jp, rows)`` (``rows``: the final state's two rows,
+    which :func:`_held_summary_py` reuses); ``ok`` False if a Gram matrix was not
     positive definite (the caller then runs the reference, whose pseudo-inverse copes).
     """
     n = x.shape[0]
     k = u0.shape[0]
     lim = np.full(k, 4.0)
     rows = np.empty((2, k, n), dtype=np.complex128)
+    cand = np.empty((2, k, n), dtype=np.complex128)
     u = u0.copy()
     _shift_rows_py(tab, nt, wc, m, u, n, rows)
     ok, basis, gi, a, r, cost, jac, jp = _vp_py(rows, x, n)
     if not ok:
-        return False, u, cost, a, r, basis, gi, jac, jp
+        return False, u, cost, a, r, basis, gi, jac, jp, rows
     lam = 1e-3
     nu = np.empty(k)
     for _ in range(max_iter):
@@ -261,10 +263,10 @@ def _held_fit_py(
         while lam < 1e8:
             for i in range(k):
                 nu[i] = min(max(u[i] + step[i], u_lo), u_hi)
-            _shift_rows_py(tab, nt, wc, m, nu, n, rows)
-            c_ok, c_basis, c_gi, c_a, c_r, c_cost, c_jac, c_jp = _vp_py(rows, x, n)
+            _shift_rows_py(tab, nt, wc, m, nu, n, cand)
+            c_ok, c_basis, c_gi, c_a, c_r, c_cost, c_jac, c_jp = _vp_py(cand, x, n)
             if not c_ok:
-                return False, u, cost, a, r, basis, gi, jac, jp
+                return False, u, cost, a, r, basis, gi, jac, jp, rows
             if c_cost <= cost:
                 accepted = True
                 lam = max(lam / 3.0, 1e-9)
@@ -281,9 +283,10 @@ def _held_fit_py(
         gain = cost - c_cost
         u = nu.copy()
         basis, gi, a, r, cost, jac, jp = c_basis, c_gi, c_a, c_r, c_cost, c_jac, c_jp
+        rows, cand = cand, rows
         if gain < tol or (small and (lam < 1.0 or gain <= 1e-12 * cost)):
             break
-    return True, u, cost, a, r, basis, gi, jac, jp
+    return True, u, cost, a, r, basis, gi, jac, jp, rows
 
 
 def _shift_row_py(
@@ -326,11 +329,13 @@ def _inverse_spd(g: np.ndarray, p: int, out: np.ndarray) -> bool:
 
 
 def _held_summary_py(
-    x: np.ndarray, tab: np.ndarray, tabd: np.ndarray, nt: int, wc: float, m: int, u: np.ndarray
+    x: np.ndarray, rows01: np.ndarray, tabd: np.ndarray, nt: int, wc: float, m: int,
+    u: np.ndarray,
 ):  # fmt: skip
     """What :func:`rangekit.detect.pathfit._summarize` computes of a held fit's paths
-    ``u``: the evaluation with the ``theta`` columns (rows from the shift tables: ``tab``
-    of the spectrum, ``tabd[j]`` of its derivative by ``theta_j``) and the Gauss-Newton
+    ``u``: the evaluation with the ``theta`` columns (``rows01`` the paths' waveform and
+    onset-derivative rows at ``u``, those of :func:`_held_fit_py`; the rows of
+    ``ds / dtheta_j`` from its shift tables ``tabd[j]``) and the Gauss-Newton
     blocks of the projected Jacobian, onsets (``A``), ``theta`` (``C``), cross (``B``).
 
     Returns ``(ok, a, cost, sig_energy, A^-1, A^-1 B, A^-1 g_u, S, S^-1 (g_t - B^T A^-1
@@ -342,7 +347,7 @@ def _held_summary_py(
     k = u.shape[0]
     p = tabd.shape[0]
     rows = np.empty((2 + p, k, n), dtype=np.complex128)
-    _shift_rows_py(tab, nt, wc, m, u, n, rows)
+    rows[:2] = rows01
     for j in range(p):
         _shift_row_py(tabd[j], nt, wc, m, u, n, rows[2 + j])
     ok, basis, _, a, r, cost, _, jp = _vp_py(rows, x, n)
@@ -408,11 +413,115 @@ def _held_summary_py(
     return True, a, cost, sig_energy, ai, aib, aig, smat, d, si
 
 
+def _stable_order(v: np.ndarray) -> np.ndarray:
+    """``np.argsort(v, kind="stable")`` of a short vector (insertion sort)."""
+    k = v.shape[0]
+    order = np.arange(k)
+    for i in range(1, k):
+        j = i
+        while j > 0 and v[order[j - 1]] > v[order[j]]:
+            order[j - 1], order[j] = order[j], order[j - 1]
+            j -= 1
+    return order
+
+
+def _held_result_py(
+    x: np.ndarray, rows01: np.ndarray, tabd: np.ndarray, nt: int, wc: float, m: int,
+    u: np.ndarray, theta: np.ndarray, n0: float, lo: float, hi: float, sigma: float,
+    energy: float, k_noise: float, rel_threshold: float, tstep: np.ndarray,
+):  # fmt: skip
+    """The whole of :func:`rangekit.detect.pathfit._summarize` of a held fit but its
+    ``PathFit``: :func:`_held_summary_py`'s blocks, then the first path (the earliest
+    path inside ``[lo - 1, hi)`` that clears ``k_noise`` and ``rel_threshold`` of the
+    strongest inside, else the strongest), its Newton step, gain and variances, and the
+    values at the arrival's own ``theta_hat`` (``PathFit.at``).
+
+    Returns ``(status, first_s, onsets, amplitudes, onset, sigma_onset, snr, misfit,
+    misfit_z, chi2, theta_hat, info, gain, var_given)``; ``status`` 0: not positive
+    definite (the caller runs the reference), 1: done, 2: no path inside (None).
+    """
+    n = x.shape[0]
+    k = u.shape[0]
+    p = tabd.shape[0]
+    ok, a, cost, sig_energy, ai, aib, aig, smat, d, si = _held_summary_py(
+        x, rows01, tabd, nt, wc, m, u
+    )
+    e1 = np.empty(0)
+    e2 = np.empty((0, 0))
+    if not ok:
+        return 0, 0, e1, e1, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, e1, e2, e1, 0.0
+    amp = np.empty(k)
+    u_abs = np.empty(k)
+    inside = np.zeros(k, dtype=np.bool_)
+    se = math.sqrt(energy)
+    any_in = False
+    for i in range(k):
+        amp[i] = np.hypot(a[2 * i], a[2 * i + 1])
+        u_abs[i] = n0 + u[i]
+        inside[i] = (u_abs[i] >= lo - 1.0) and (u_abs[i] < hi)
+        any_in = any_in or inside[i]
+    if not any_in:
+        return 2, 0, e1, e1, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, e1, e2, e1, 0.0
+    top = -1.0
+    strongest = 0
+    for i in range(k):
+        v = amp[i] if inside[i] else -1.0
+        if v > top:
+            top, strongest = v, i
+    first = strongest
+    for i in _stable_order(u):
+        if inside[i] and u_abs[i] < u_abs[strongest] and amp[i] * se / sigma >= k_noise:
+            if amp[i] >= rel_threshold * top:
+                first = i
+                break
+    newton = aig[first]
+    onset_lin = u_abs[first] + (newton if abs(newton) < 1.0 else 0.0)
+    gain = np.empty(p)
+    theta_hat = np.empty(p)
+    info = np.empty((p, p))
+    good = True
+    s2 = sigma**2
+    for j in range(p):
+        gain[j] = -aib[first, j]
+        theta_hat[j] = theta[j] + d[j]
+        if not (math.isfinite(theta_hat[j]) and abs(theta_hat[j] - theta[j]) <= 3.0 * tstep[j]):
+            good = False
+        for c in range(p):
+            info[j, c] = smat[j, c] / s2
+    if not good:
+        theta_hat[:] = theta  # a Newton step beyond the fit's reach: keep the fit's value
+    var_given = s2 * ai[first, first]
+    dof = max(1, n - 2 * k - k - 2)
+    misfit = (cost - dof * s2) / sig_energy if sig_energy > 0 else 0.0
+    order = _stable_order(u_abs)
+    onsets = np.empty(k)
+    amps = np.empty(k)
+    first_s = 0
+    for i in range(k):
+        onsets[i] = u_abs[order[i]]
+        amps[i] = amp[order[i]]
+        if order[i] == first:
+            first_s = i
+    onsets[first_s] = onset_lin
+    onset = onsets[first_s]
+    var = var_given
+    for j in range(p):
+        onset += gain[j] * (theta_hat[j] - theta[j])
+        for c in range(p):
+            var += gain[j] * (si[j, c] * s2) * gain[c]
+    return (
+        1, first_s, onsets, amps, onset, math.sqrt(max(var, 0.0)), amp[first] * se / sigma,
+        misfit, (cost / s2 - dof) / math.sqrt(2.0 * dof), cost / s2, theta_hat, info, gain,
+        var_given,
+    )  # fmt: skip
+
+
 _KERNELS = {"vp": _vp_py, "lm_step": _lm_step_py, "held_fit": _held_fit_py,
-            "shift_rows": _shift_rows_py, "held_summary": _held_summary_py}  # fmt: skip
+            "shift_rows": _shift_rows_py, "held_summary": _held_summary_py,
+            "held_result": _held_result_py}  # fmt: skip
 #: Helpers the kernels call, compiled into this module's namespace first.
 _HELPERS = ("_cholesky", "_chol_solve", "_vp_py", "_lm_step_py", "_shift_rows_py",
-            "_shift_row_py", "_inverse_spd")  # fmt: skip
+            "_shift_row_py", "_inverse_spd", "_held_summary_py", "_stable_order")  # fmt: skip
 
 
 @functools.cache

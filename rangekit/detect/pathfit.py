@@ -319,7 +319,8 @@ def _model(burst: CodedBurst, fs: float, f0: float, stages: int) -> ResonatorMod
 
 
 def _key(tag: str, theta: np.ndarray, *extra) -> tuple:
-    return (tag, *(float(v) for v in theta), *extra)
+    # (the Python floats of theta's values: tolist() is float(v) of each, in one call)
+    return (tag, *np.asarray(theta, dtype=np.float64).tolist(), *extra)
 
 
 def _energy(model, theta: np.ndarray) -> float:
@@ -519,6 +520,7 @@ class _State:
     jac: np.ndarray  # d model / d (u_1..u_K, [theta]), unprojected
     with_theta: bool
     jp: np.ndarray | None = None  # the projected Jacobian, when computed with the state
+    rows: np.ndarray | None = None  # (2, k, n) waveform and onset rows (the held kernel's)
 
 
 def _evaluate(x: np.ndarray, model, u: np.ndarray, theta: np.ndarray, with_theta: bool) -> _State:
@@ -632,12 +634,12 @@ def _lm_step_np(jp: np.ndarray, r: np.ndarray, p: int, lam: float, lim: np.ndarr
 HELD_KERNEL = True
 #: The held fit's shift series stops where its next term is below this fraction of the
 #: largest value a waveform sample can take (``sum |s| / n_fft``).
-SHIFT_TOL = 1e-17
+SHIFT_TOL = 1e-14
 
 
 def _shift_tables(model, theta: np.ndarray, derivs: bool = False):
-    """``(tab, nt, wc)`` (``derivs``: ``(tab, tabd, nt, wc)``): the tables of the held
-    fit's shift series at ``theta``.
+    """``(tab, nt, wc)`` (``derivs``: ``(tabd, nt, wc)``): the tables of the held fit's
+    shift series at ``theta``.
 
     ``tab[q] = IFFT(s (w - wc)^q)``, ``q = 0 .. nt``, repeated once along the grid
     (:func:`rangekit.detect._pathfit_kernels._shift_rows_py`), ``wc`` the spectrum's
@@ -670,14 +672,16 @@ def _shift_tables(model, theta: np.ndarray, derivs: bool = False):
             break
         nt += 1
     m, nl = model.n_fft, len(s)
-    buf = np.zeros((1 + len(ds), nt + 1, m), dtype=np.complex128)
-    for j, spec in enumerate([s, *ds]):
+    specs = ds if derivs else [s]
+    n_q = nt if derivs else nt + 1  # the onset row reads D_{q + 1}
+    buf = np.zeros((len(specs), n_q, m), dtype=np.complex128)
+    for j, spec in enumerate(specs):
         buf[j, 0, :nl] = spec
-        for q in range(1, nt + 1):
+        for q in range(1, n_q):
             buf[j, q, :nl] = buf[j, q - 1, :nl] * dw
     d = _c2c_inverse(buf)
     d = np.concatenate([d, d[:, :, : model.segment]], axis=2)  # a shift of n <= segment
-    hit = (d[0], np.ascontiguousarray(d[1:, :nt]), nt, wc) if derivs else (d[0], nt, wc)
+    hit = (d, nt, wc) if derivs else (d[0], nt, wc)
     _held_put(cache, key, hit)
     return hit
 
@@ -688,7 +692,7 @@ def _held_fit(x, model, u, theta, tol, max_iter, u_lo, u_hi) -> _State | None:
     from rangekit.detect._pathfit_kernels import call
 
     tab, nt, wc = _shift_tables(model, theta)
-    ok, u, cost, a, r, basis, gi, jac, jp = call(
+    ok, u, cost, a, r, basis, gi, jac, jp, rows = call(
         "held_fit",
         x,
         tab,
@@ -703,7 +707,7 @@ def _held_fit(x, model, u, theta, tol, max_iter, u_lo, u_hi) -> _State | None:
     )
     if not ok:
         return None
-    return _State(u, theta, cost, a, r, basis, gi, jac, False, jp)
+    return _State(u, theta, cost, a, r, basis, gi, jac, False, jp, rows)
 
 
 def _lm_step(jp, r, p, lam, lim, kernel: bool):
@@ -1048,13 +1052,10 @@ def _paths(
 def _summarize(st, seg, n0, model, sigma, k_noise, rel_threshold, lo, hi, free=True):
     """First path, information about ``theta`` and flags' inputs of a fitted segment."""
     held = None
-    if (
-        not (st.with_theta or free)
-        and HELD_KERNEL
-        and _use_kernel(seg)
-        and len(seg) <= model.segment
-    ):
-        held = _held_blocks(seg, model, st.u, st.theta)
+    if not (st.with_theta or free) and st.rows is not None and _use_kernel(seg):
+        out = _held_result(seg, n0, model, sigma, k_noise, rel_threshold, lo, hi, st)
+        if out is not _REFERENCE:
+            return out
     if held is None and not st.with_theta:
         st = _evaluate(seg, model, st.u, st.theta, True)
     a, cost = (st.a, st.cost) if held is None else held[1:3]
@@ -1148,13 +1149,60 @@ def _summarize(st, seg, n0, model, sigma, k_noise, rel_threshold, lo, hi, free=T
     )
 
 
-def _held_blocks(seg, model, u, theta):
-    """The compiled part of :func:`_summarize` for a held fit (None: not positive
-    definite somewhere; the caller runs the reference)."""
+#: :func:`_held_result`'s answer where the reference must run.
+_REFERENCE = object()
+
+
+def _held_result(seg, n0, model, sigma, k_noise, rel_threshold, lo, hi, st: _State):
+    """:func:`_summarize` of a state of the held kernel as one compiled call
+    (:func:`rangekit.detect._pathfit_kernels._held_result_py`); ``_REFERENCE`` where a
+    matrix is not positive definite (the reference then runs, with its own fallbacks)."""
     from rangekit.detect._pathfit_kernels import call
 
-    tab, tabd, nt, wc = _shift_tables(model, theta, derivs=True)
-    out = call("held_summary", seg, tab, tabd, nt, wc, model.n_fft, np.ascontiguousarray(u))
+    tabd, nt, wc = _shift_tables(model, st.theta, derivs=True)
+    out = call(
+        "held_result", seg, st.rows, tabd, nt, wc, model.n_fft, st.u, st.theta, float(n0),
+        float(lo), float(hi), float(sigma), _energy(model, st.theta), float(k_noise),
+        float(rel_threshold), model.theta_step(),
+    )  # fmt: skip
+    status, first_s, onsets, amps, onset, sig, snr, misfit, misfit_z, chi2 = out[:10]
+    if status != 1:
+        return None if status == 2 else _REFERENCE
+    theta_hat, info, gain, var_given = out[10:]
+    theta_lin = st.theta.copy()
+    q, f0 = model.q_f0(theta_hat)
+    return PathFit(
+        onset=onset,
+        sigma=sig,
+        snr=snr,
+        q=q,
+        f0_hz=f0,
+        onsets=onsets,
+        amplitudes=amps,
+        first=first_s,
+        misfit=misfit,
+        misfit_z=misfit_z,
+        resolution=_resolution(model, st.theta),
+        theta_lin=theta_lin,
+        gain=gain,
+        var_given=var_given,
+        theta_hat=theta_hat,
+        info=info,
+        family=model.family,
+        chi2=chi2,
+        n_par=3 * len(st.u),
+        q_of=model.q_f0,
+        n0=int(n0),
+    )
+
+
+def _held_blocks(seg, model, st: _State):
+    """The compiled part of :func:`_summarize` for a state of the held kernel (None: not
+    positive definite somewhere; the caller runs the reference)."""
+    from rangekit.detect._pathfit_kernels import call
+
+    tabd, nt, wc = _shift_tables(model, st.theta, derivs=True)
+    out = call("held_summary", seg, st.rows, tabd, nt, wc, model.n_fft, st.u)
     return out if out[0] else None
 
 
