@@ -183,12 +183,16 @@ def test_a_held_fit_arrival_compiled_equals_the_numpy_reference(i, monkeypatch):
     model, x, th, u0, sigma = _held_signal(i)
     x = np.concatenate([np.zeros(200), x])  # room before the segment
     lag = 200.0 + min(u0)
+    ran = []
+    real = P._held_result
+    monkeypatch.setattr(P, "_held_result", lambda *a: ran.append(real(*a)) or ran[-1])
     fits = {}
     for compiled in (True, False):
         with _step(monkeypatch, compiled):
             fits[compiled] = P.fit_arrival(x, lag, model=model, sigma=sigma, theta=th,
                                            hold=True)  # fmt: skip
     a, b = fits[True], fits[False]
+    assert len(ran) == 1 and ran[0] is a  # the compiled summary made the compiled fit
     assert a.n_paths == b.n_paths and a.first == b.first
     # measured: onsets to 2e-13 samples, the rest to 1e-13 relative (gain 1e-13 absolute)
     np.testing.assert_allclose(a.onsets, b.onsets, rtol=0, atol=1e-6)
@@ -239,3 +243,13 @@ def test_a_singular_held_fit_falls_back_to_the_reference(monkeypatch):
         with P.compiled_step(True):
             got[refuse] = P.fit_paths(x, model, u0, theta=th, fit_theta=False)
     assert np.array_equal(got[True].u, got[False].u) and got[True].cost == got[False].cost
+
+
+@pytest.mark.parametrize("compiled", [True, False])
+def test_a_held_fit_with_no_path_in_the_search_range_is_none(compiled, monkeypatch):
+    model, x, th, u0, sigma = _held_signal(0)
+    x = np.concatenate([np.zeros(200), x])
+    with _step(monkeypatch, compiled):
+        kw = {"model": model, "sigma": sigma, "theta": th, "hold": True}
+        assert P.fit_arrival(x, 200.0 + u0[0], lo=600.0, hi=700.0, **kw) is None
+        assert P.fit_arrival(x, 200.0 + u0[0], lo=200.0, hi=400.0, **kw) is not None
