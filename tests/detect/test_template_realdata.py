@@ -15,7 +15,7 @@ Measured (seed 5; ``python tests/detect/measure_template.py dechorate``):
 probe, noise                |e| <= 1  |e| <= 3  |e| <= 2 sig  max |e|
 ==========================  ========  ========  ===========  ==============
 200 Hz-13 kHz, 30 dB         9 / 12   12 / 12    12 / 12     1.7 samples
-200 Hz-13 kHz, 30 dB + LF    5 / 12   12 / 12    12 / 12     3.0 samples
+200 Hz-13 kHz, 30 dB + LF    5 / 12   12 / 12    12 / 12     2.6 samples
 200 Hz-13 kHz, 120 dB        8 / 12   12 / 12    12 / 12     1.7 samples
 8-12 kHz, 30 dB              2 / 12    2 / 12    11 / 12    11.9 samples
 ==========================  ========  ========  ===========  ==============
@@ -139,7 +139,7 @@ def test_wide_sweep_with_low_frequency_noise(rirs):
     rows = _errors(rirs, p, lf=True)
     e = worse(np.array([r[0] for r in rows]))
     sig = np.array([r[1] for r in rows])
-    assert np.all(np.abs(e) <= 3.5)  # measured max 3.0 samples
+    assert np.all(np.abs(e) <= 3.5)  # measured max 2.6 samples (2026-12-03; was 3.0)
     assert np.sum(np.abs(e) <= 1.0) >= 3  # measured 5 / 12 (envelope timing: 2 / 12)
     assert np.sum(np.abs(e) <= 2 * sig) >= 11  # measured 12 / 12
     assert all("dc_or_lowband" in r[2] for r in rows)
