@@ -18,6 +18,19 @@ compiled loop, and :func:`_lm_step_py` a Levenberg-Marquardt iteration's linear 
   and the damped step ``(J^T J + lam diag(J^T J))^-1 g`` (Cholesky, the damping raised
   while singular), scaled so that no parameter moves more than its limit.
 
+**A held fit in two calls.** Most arrivals are fitted with the transducers held at
+their group's estimate (``fit_theta=False``): the spectrum ``s`` is then constant and
+only the onsets move. :func:`_held_fit_py` runs that fit's whole Levenberg-Marquardt loop
+(the rules of ``pathfit.fit_paths``), and :func:`_held_result_py` what
+``pathfit._summarize`` makes of it (the ``theta`` columns at the fitted onsets, the
+Gauss-Newton blocks, the first path, its Newton step, gain and variances). Neither calls
+an FFT: a waveform at onset ``u = i + f`` (``i = round(u)``, ``|f| <= 1/2``) is the
+circular shift by ``i`` of ``exp(-j wc f) sum_q (-j f)^q / q! D_q`` with ``D_q =
+IFFT(s (w - wc)^q)`` tabulated once per held ``theta`` (the Taylor series of ``exp(-j (w
+- wc) f)``; :func:`_shift_rows_py`; ``pathfit.SHIFT_TOL`` sets the terms: 13-14, the
+rows equal to the inverse FFT's to 2e-14 of their peak, tested; the fits' results to
+~1e-13, tested).
+
 The numpy code of :func:`rangekit.detect.pathfit._evaluate_np` and
 :func:`rangekit.detect.pathfit._lm_step_np` is the reference (used
 for shorter recordings, and tested against this kernel in

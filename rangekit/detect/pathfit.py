@@ -337,7 +337,7 @@ def _energy(model, theta: np.ndarray) -> float:
 
 
 #: Entries of a model's cache of held-``theta`` quantities (:func:`_held_cache`).
-HELD_CACHE = 24
+HELD_CACHE = 16
 
 
 def _held_cache(model) -> dict:
@@ -647,7 +647,8 @@ def _shift_tables(model, theta: np.ndarray, derivs: bool = False):
     first ``q`` at which the series' term bound ``sum_l |s_l| (|w_l - wc| / 2)^q / q!``
     (a shift's fraction is at most 1/2; also with a factor ``|w_l - wc|`` for the onset
     derivative, and for each ``ds_j``) drops below ``SHIFT_TOL sum_l |s_l|``, so the
-    rows equal the inverse FFT's to rounding. Cached on the model.
+    rows equal the inverse FFT's to ~2e-14 of their peak. Cached on the model
+    (:func:`_held_cache`).
     """
     cache = _held_cache(model)
     key = _key("shiftd" if derivs else "shift", theta)
