@@ -250,6 +250,12 @@ EQUIVALENT: dict[str, dict[tuple, str]] = {
         ("for i, (key, fam) in enumerate(zip(fit.group, fit.family, strict=True)):",
          "True -> False"): "fit_channel's ChannelFit has one group label and one family per "
             "arrival (keys and chosen): strict never raises",
+        ("self.w = 1.0", "1.0 -> 2.0"):
+            "never read: every group is decided (decide sets w) before the sigma loop reads it",
+        ("windows = np.asarray(windows, dtype=np.int64).reshape(-1, 2)", "1 -> 2"):
+            "numpy (2.4) reads any negative size as the unknown one: reshape(-2, 2) is (-1, 2)",
+        ("if k == key and f is not None and f.family == fam", "== -> !=", 1):
+            "the loop's two passes swap the two families' (disjoint) sets: the same sets pooled",
     },
     "rangekit/detect/_coherent.py": {
         ("while b - a > 1e-4:", "> -> >="): "the interval, 2 g^k wide, is never exactly 1e-4",

@@ -291,11 +291,37 @@ def test_the_resonator_alone_is_detect_matched_with_its_model(models, t, groups,
                     pool=pool).arrivals  # fmt: skip
     b = detect_matched(x, fs=FS, template=tpl, model=models[0], windows=win, groups=groups,
                        pool=pool)  # fmt: skip
-    for name in ("onset", "sigma", "snr_db", "confidence", "flags", "window"):
-        assert np.array_equal(getattr(a, name), getattr(b, name)), name
+    _same_arrivals(a, b)
     a2 = fit_channel(x, fs=FS, template=tpl, models=(models[0], None), windows=win,
                      groups=groups, pool=pool).arrivals  # fmt: skip
     assert np.array_equal(a2.onset, a.onset) and np.array_equal(a2.sigma, a.sigma)
+
+
+def _same_arrivals(a, b):
+    for name in ("onset", "sigma", "snr_db", "confidence", "flags", "window"):
+        assert np.array_equal(getattr(a, name), getattr(b, name)), name
+
+
+def test_the_resonator_alone_is_detect_matched_at_its_edges(models):
+    """The same arrivals as ``detect_matched`` where its rules bite: a sample noise out of
+    [0.1, 2] times the envelope's (digital near-silence before the first arrival, a loud
+    stretch before the second) replaced by the envelope's; a search range whose start lies
+    just after a path, which the fit's segment holds but never takes as the first path."""
+    tpl = coded_template(fs=FS)
+    res = models[:1]
+    x, win = _channel(Transducer(q=8.0), 3)
+    x[:2900] *= 0.02
+    x[N_WIN : N_WIN + 2900] *= 4.0
+    kw = {"fs": FS, "template": tpl, "windows": win}
+    _same_arrivals(fit_channel(x, models=res, **kw).arrivals,
+                   detect_matched(x, model=models[0], **kw))  # fmt: skip
+    # a path 40 samples before the search range (inside the fit's 77-sample lead-in)
+    x, win = _channel(Transducer(q=8.0), 3, echoes=((60, 0.8),))
+    kw = {"fs": FS, "template": tpl, "windows": win, "search": (3040, 6000)}
+    a = fit_channel(x, models=res, **kw).arrivals
+    _same_arrivals(a, detect_matched(x, model=models[0], **kw))
+    late = a.onset - (3060.0 + N_WIN * np.arange(3))
+    assert np.all(np.abs(late) < 1.0)  # the later path's onset (measured within 0.1)
 
 
 def test_a_group_of_two_is_pooled(models):
