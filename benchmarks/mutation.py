@@ -75,6 +75,7 @@ TESTS: dict[str, tuple[str, ...]] = {
         "tests/detect/test_changepoint_mutation2.py",
         "tests/detect/test_precursor.py",
         "tests/detect/test_edge_kernels.py",
+        "tests/detect/test_combine_drift.py",
     ),
     "rangekit/detect/_kernels.py": ("tests/detect/test_kernels.py",),
     "rangekit/detect/condition.py": ("tests/detect/test_condition.py",),
