@@ -253,3 +253,32 @@ def test_a_held_fit_with_no_path_in_the_search_range_is_none(compiled, monkeypat
         kw = {"model": model, "sigma": sigma, "theta": th, "hold": True}
         assert P.fit_arrival(x, 200.0 + u0[0], lo=600.0, hi=700.0, **kw) is None
         assert P.fit_arrival(x, 200.0 + u0[0], lo=200.0, hi=400.0, **kw) is not None
+
+
+@pytest.mark.parametrize("i", [0, 2])
+def test_a_held_stagger_fit_compiled_equals_the_numpy_reference(i, monkeypatch):
+    """The stagger model (four ``theta`` columns) through the same compiled calls."""
+    from rangekit.detect.stagger import StaggerModel
+
+    _, x, _, u0, sigma = _held_signal(i)
+    model = StaggerModel.for_burst(fs=FS)
+    th = model.theta_start(HELD_CASES[i][3])
+    x = np.concatenate([np.zeros(200), x])
+    ran = []
+    real = P._held_result
+    monkeypatch.setattr(P, "_held_result", lambda *a: ran.append(real(*a)) or ran[-1])
+    fits = {}
+    for compiled in (True, False):
+        with _step(monkeypatch, compiled):
+            fits[compiled] = P.fit_arrival(x, 200.0 + min(u0), model=model, sigma=sigma,
+                                           theta=th, hold=True)  # fmt: skip
+    a, b = fits[True], fits[False]
+    assert len(ran) == 1 and ran[0] is a and a.info.shape == (4, 4)
+    assert a.n_paths == b.n_paths and a.first == b.first
+    # measured: onsets to 2e-13 samples, the rest to 1e-13 relative
+    np.testing.assert_allclose(a.onsets, b.onsets, rtol=0, atol=1e-6)
+    np.testing.assert_allclose(a.amplitudes, b.amplitudes, rtol=1e-8, atol=0)
+    for name in ("sigma", "chi2", "var_given", "snr"):
+        assert getattr(a, name) == pytest.approx(getattr(b, name), rel=1e-8), name
+    np.testing.assert_allclose(a.info, b.info, rtol=1e-8, atol=1e-12 * np.max(np.abs(b.info)))
+    np.testing.assert_allclose(a.theta_hat, b.theta_hat, rtol=1e-10, atol=0)
