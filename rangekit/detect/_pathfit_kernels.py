@@ -530,8 +530,7 @@ def _held_result_py(
 
 
 _KERNELS = {"vp": _vp_py, "lm_step": _lm_step_py, "held_fit": _held_fit_py,
-            "shift_rows": _shift_rows_py, "held_summary": _held_summary_py,
-            "held_result": _held_result_py}  # fmt: skip
+            "shift_rows": _shift_rows_py, "held_result": _held_result_py}  # fmt: skip
 #: Helpers the kernels call, compiled into this module's namespace first.
 _HELPERS = ("_cholesky", "_chol_solve", "_vp_py", "_lm_step_py", "_shift_rows_py",
             "_shift_row_py", "_inverse_spd", "_held_summary_py", "_stable_order")  # fmt: skip

@@ -1052,14 +1052,13 @@ def _paths(
 
 def _summarize(st, seg, n0, model, sigma, k_noise, rel_threshold, lo, hi, free=True):
     """First path, information about ``theta`` and flags' inputs of a fitted segment."""
-    held = None
     if not (st.with_theta or free) and st.rows is not None and _use_kernel(seg):
         out = _held_result(seg, n0, model, sigma, k_noise, rel_threshold, lo, hi, st)
         if out is not _REFERENCE:
             return out
-    if held is None and not st.with_theta:
+    if not st.with_theta:
         st = _evaluate(seg, model, st.u, st.theta, True)
-    a, cost = (st.a, st.cost) if held is None else held[1:3]
+    a, cost = st.a, st.cost
     k = len(st.u)
     amp = np.hypot(a[0::2], a[1::2])
     e = _energy(model, st.theta)
@@ -1078,35 +1077,26 @@ def _summarize(st, seg, n0, model, sigma, k_noise, rel_threshold, lo, hi, free=T
                 break
     p = model.n_theta
     theta_lin = st.theta.copy()
-    if held is None:
-        # Gauss-Newton blocks of the projected Jacobian: onsets (A), theta (C), cross (B).
-        jp = _projected(st)
-        ju, jt = jp[:, :k], jp[:, k:]
-        A, B, C = ju.T @ ju, ju.T @ jt, jt.T @ jt
-        gu, gt = ju.T @ st.r, jt.T @ st.r
-        try:
-            ai = np.linalg.inv(A)
-        except np.linalg.LinAlgError:
-            return None
-        S = C - B.T @ ai @ B
-        # One Newton step to the optimum in the onsets (~0 after a converged fit).
-        newton = float((ai @ gu)[first])
-        gain = -(ai @ B)[first]
-        try:
-            theta_hat = theta_lin + np.linalg.solve(S, gt - B.T @ ai @ gu)
-            info = S / sigma**2
-            cov_t = np.linalg.inv(info)
-        except np.linalg.LinAlgError:
-            theta_hat, info, cov_t = theta_lin, np.zeros((p, p)), np.zeros((p, p))
-        sig_energy = float(np.sum((st.basis @ st.a) ** 2))
-    else:
-        # The same blocks from the compiled call (Cholesky inverses: equal to rounding).
-        sig_energy, ai, aib, aig, S, d, si = held[3:]
-        newton = float(aig[first])
-        gain = -aib[first]
-        theta_hat = theta_lin + d
+    # Gauss-Newton blocks of the projected Jacobian: onsets (A), theta (C), cross (B).
+    jp = _projected(st)
+    ju, jt = jp[:, :k], jp[:, k:]
+    A, B, C = ju.T @ ju, ju.T @ jt, jt.T @ jt
+    gu, gt = ju.T @ st.r, jt.T @ st.r
+    try:
+        ai = np.linalg.inv(A)
+    except np.linalg.LinAlgError:
+        return None
+    S = C - B.T @ ai @ B
+    # One Newton step to the optimum in the onsets (~0 after a converged fit).
+    newton = float((ai @ gu)[first])
+    gain = -(ai @ B)[first]
+    try:
+        theta_hat = theta_lin + np.linalg.solve(S, gt - B.T @ ai @ gu)
         info = S / sigma**2
-        cov_t = si * sigma**2
+        cov_t = np.linalg.inv(info)
+    except np.linalg.LinAlgError:
+        theta_hat, info, cov_t = theta_lin, np.zeros((p, p)), np.zeros((p, p))
+    sig_energy = float(np.sum((st.basis @ st.a) ** 2))
     onset_lin = float(u_abs[first] + (newton if abs(newton) < 1.0 else 0.0))
     var_given = sigma**2 * float(ai[first, first])
     if not np.all(np.isfinite(theta_hat)) or np.any(
@@ -1195,16 +1185,6 @@ def _held_result(seg, n0, model, sigma, k_noise, rel_threshold, lo, hi, st: _Sta
         q_of=model.q_f0,
         n0=int(n0),
     )
-
-
-def _held_blocks(seg, model, st: _State):
-    """The compiled part of :func:`_summarize` for a state of the held kernel (None: not
-    positive definite somewhere; the caller runs the reference)."""
-    from rangekit.detect._pathfit_kernels import call
-
-    tabd, nt, wc = _shift_tables(model, st.theta, derivs=True)
-    out = call("held_summary", seg, st.rows, tabd, nt, wc, model.n_fft, st.u)
-    return out if out[0] else None
 
 
 def pool_fits(fits, *, max_chi2: float = 4.0):
