@@ -20,7 +20,7 @@ gives the log Bayes factor of the stagger's two further parameters, shared by th
 two extra parameters each lower the stagger's chi-square by 2 on average when the
 resonator is right; ``N`` the samples fitted; the median so that one stuck window does
 not decide), and the posterior probability of the stagger model ``w = 1 / (1 +
-exp(-L))``. The stagger model (where ``w >= P_STAGGER``) or else the resonator times
+exp(-L))``. The stagger model (where ``w > P_STAGGER``) or else the resonator times
 every arrival of the group (held at its running estimate after ``N_FREE_FITS`` free
 fits, pooled as in :func:`rangekit.detect.pathfit.pool_fits`; the stagger's free fits
 refitted at the group's robust estimate).
@@ -104,9 +104,10 @@ N_FREE_FITS = M.N_FREE_FITS
 def _fit_one(x, lag, model, sigma, acc, q0, kw, low, theta=None, start=None) -> PathFit | None:
     """One model's fit of an arrival; updates that model's running estimate ``acc``.
 
-    ``acc`` is ``[sum info, sum info theta, n, theta_held]`` over the group's fits above
-    the low-SNR level (the scheme of ``rangekit.detect.matched._fit_window`` for any
-    number of transducer parameters).
+    ``acc`` is ``[sum info, sum info theta, n, theta_held, fits]`` over the group's fits
+    above the low-SNR level (the scheme of ``rangekit.detect.matched._fit_window`` for any
+    number of transducer parameters), and a sixth item True where ``theta_held`` was given
+    (a forced consensus shape: never refreshed from the group's own fits).
     """
     p = model.n_theta
     fit = None
@@ -136,7 +137,8 @@ def _accumulate(acc, fit, model, low) -> None:
         acc[2] += 1
         acc[4].append(fit)
         n = acc[2]
-        if n >= N_FREE_FITS and (acc[3] is None or n & (n - 1) == 0):
+        pinned = len(acc) > 5 and acc[5]  # held at a consensus given from outside
+        if n >= N_FREE_FITS and not pinned and (acc[3] is None or n & (n - 1) == 0):
             if model.family == "resonator":
                 try:
                     acc[3] = np.linalg.solve(acc[0], acc[1])
@@ -356,7 +358,9 @@ def fit_channel(
                 g.decide(fk)
                 th = np.asarray(fk[1], dtype=np.float64)
                 p_ = len(th)
-                g.acc["stagger"].extend([np.zeros((p_, p_)), np.zeros(p_), N_FREE_FITS, th, []])
+                g.acc["stagger"].extend(
+                    [np.zeros((p_, p_)), np.zeros(p_), N_FREE_FITS, th, [], True]
+                )
         kw = {"k_noise": k_noise, "rel_threshold": rel_threshold, "lo": s0 + l_, "hi": s0 + h_}
         lag = a + p.lag
         got: dict[str, PathFit | None] = {}
