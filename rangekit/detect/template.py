@@ -40,9 +40,10 @@ room or transducer (theory and measurements: ``docs/theory/probes.md``):
    path nor the CLEANed other paths explain, :func:`_unexplained`), the two timings'
    disagreement beyond their own errors, the pull of later paths' range side lobes
    (:func:`_leakage`; removed from the onset where it is small, and kept in sigma), and
-   the transducers' unknown group delay in the probe's band
-   (:func:`transducer_sigma`; also in ``Arrivals.sigma_transducer``, which two-way
-   ranging leaves out because it cancels there).
+   the transducers' unknown delay of what the timing reads (:func:`transducer_sigma`: the
+   group delay in the probe's band for the envelope, the pulse peak's delay behind the
+   propagation onset for the phase-coherent timing; also in ``Arrivals.sigma_transducer``,
+   which two-way ranging leaves out because it cancels there).
 7. **Flags** (:data:`rangekit.types.ARRIVAL_FLAGS`): ``clipped``, ``low_snr``,
    ``ambiguous_first_path``, ``poor_match`` (sub-band coverage, :func:`_coverage`),
    ``reverb_limited``, ``dc_or_lowband``.
@@ -192,22 +193,24 @@ def noise_spectra(x: np.ndarray, *, fs: float, probe: Probe) -> Spectra:
 
 
 def transducer_sigma(beta: float, ripple_db: float = DEFAULT_TRANSDUCER_RIPPLE_DB) -> float:
-    """1-sigma (in the unit of ``1 / beta``) of the transducers' unknown group delay that an
-    envelope timing of a band reads as propagation.
+    """1-sigma (in the unit of ``1 / beta``) of the transducers' unknown delay that a timing
+    of a band reads as propagation.
 
     The loudspeaker-microphone chain ``H(f) = |H| exp(j (phi_0 - 2 pi f tau_0 + delta(f)))``
-    delays the received pulse's peak by ``tau_0`` (the broadband peak, the convention of
-    measured impulse responses and of the phase-coherent timing); over a probe's band its
-    phase departs from that by ``delta(f)``. A minimum-phase chain whose log-magnitude
-    ripples by ``A`` nepers (``ripple_db / 8.686``) about a smooth trend has, by Bode's
-    gain-phase relation (the phase is the Hilbert transform of ``ln |H|``), a phase ripple
-    of the same amplitude, ``|delta| <= A`` rad. The envelope peak of the matched filter
-    reads the weighted least-squares slope of the arrival's phase over the band, so it
-    shifts by ``sum w (f - f_c) delta / (2 pi sum w (f - f_c)^2)``, at most (Cauchy-Schwarz)
-    ``A / (2 pi beta)``, ``beta`` the RMS bandwidth of the weighted spectrum about its
-    centroid. Unlike the shape term this part cannot be seen in the arrival: a phase
-    slope is a delay. Derivation and measurements: ``docs/theory/probes.md``
-    (uncertainty).
+    delays the propagation onset by a fixed ``tau_0`` (the chain's latency, the same in
+    every arrival through it); its phase departs from that pure delay by ``delta(f)``. A
+    minimum-phase chain whose log-magnitude ripples by ``A`` nepers (``ripple_db / 8.686``)
+    about a smooth trend has, by Bode's gain-phase relation (the phase is the Hilbert
+    transform of ``ln |H|``), a phase ripple of the same amplitude, ``|delta| <= A`` rad.
+    The envelope peak of the matched filter reads the weighted least-squares slope of the
+    arrival's phase over the band, so it shifts by ``sum W (f - f_c) delta / (2 pi sum W
+    (f - f_c)^2)``, at most (Cauchy-Schwarz) ``A / (2 pi beta)`` with ``beta`` the RMS
+    bandwidth of the weighted spectrum about its centroid. The phase-coherent timing (the
+    pulse's peak, the extremum of the real part) reads the slope through the origin,
+    ``sum W f (phi_0 + delta) / (2 pi sum W f^2)``, at most ``A / (2 pi F)`` with ``F``
+    the RMS frequency about 0: call this with ``beta=F`` for it. Unlike the shape term
+    this part cannot be seen in the arrival: a phase slope is a delay. Derivation and
+    measurements: ``docs/theory/probes.md`` (uncertainty).
 
     Examples
     --------
@@ -307,17 +310,21 @@ def detect_template(
     envelope's energy within the main lobe around the first path that the self response
     does not explain, beyond the noise's share: by Cauchy–Schwarz an unmodelled
     component of relative energy ``eps`` shifts a correlation peak by at most
-    ``sqrt(eps) / (2 pi beta)`` (derivation in ``docs/theory/probes.md``). For the
-    envelope timing's share ``1 - w``, ``eps`` is read at the onset the pull was taken
-    from, with the other paths of ``s_leak`` subtracted (:func:`_unexplained`): their
-    side lobes in the main lobe *are* the pull, which ``s_leak`` holds, and were
-    counted twice before (17-20 kHz in rooms: sigma 4x the errors). ``s_def`` the
+    ``sqrt(eps) / (2 pi beta)`` (derivation in ``docs/theory/probes.md``); the
+    phase-coherent timing's share ``w`` (the real part's peak, of curvature ``(2 pi
+    F_w)^2``, ``F_w`` the RMS frequency of ``|S|^2 W`` about 0) takes ``F_w`` for
+    ``beta_w``, as its Cramér–Rao term does. For the envelope timing's share ``1 - w``,
+    ``eps`` is read at the onset the pull was taken from, with the other paths of
+    ``s_leak`` subtracted (:func:`_unexplained`): their side lobes in the main lobe *are*
+    the pull, which ``s_leak`` holds, and were counted twice before (17-20 kHz in rooms:
+    sigma 4x the errors). ``s_def`` the
     disagreement of the phase-coherent and envelope timings of a wide probe beyond the
     envelope's noise and both interpolation errors (``s_interp`` of each: the
     envelope's alone is 0.01 samples on a 20 Hz-20 kHz sweep); ``s_td =
-    (1 - w) transducer_sigma(beta_w)`` the transducers' in-band group delay
-    (:func:`transducer_sigma`), ``w`` the weight of the phase-coherent timing (the pulse's
-    peak, which is the reference: 0 for narrow probes); ``s_leak`` the first-order pull
+    (1 - w) transducer_sigma(beta_w) + w transducer_sigma(F_w)`` the transducers' unknown
+    delay (:func:`transducer_sigma`: the in-band group delay for the envelope, the pulse
+    peak's delay behind the propagation onset for the phase-coherent timing), ``w`` the
+    weight of the phase-coherent timing (0 for narrow probes); ``s_leak`` the first-order pull
     of the other paths' range side lobes on the envelope peak (:func:`_leakage`), which
     is taken off the onset when it is at most :data:`LEAK_CORRECT_LOBE` of the main
     lobe's half width (then :data:`LEAK_RESIDUAL` of it stays in sigma).
@@ -443,7 +450,9 @@ def detect_template(
                 lag += w * d
         j = int(round(lag))
         eps, ambiguous_near = _shape(c, j, lag - j, wf, floor)
-        s_td = (1.0 - w) * s_td_env / wf.beta
+        # The chain's phase ripple moves the envelope peak by up to A / (2 pi beta_w) and
+        # the pulse's peak (real part) by up to A / (2 pi F_w) (docs/theory/probes.md).
+        s_td = ((1.0 - w) / wf.beta + w / wf.f_rms) * s_td_env
         # The pull is the envelope peak's: the phase-coherent share (w) is not moved.
         paths = _other_paths(c, j, lag - j, wf, k_noise * f_search)
         pull = (1.0 - w) * _leakage(c, j, lag - j, wf, paths)
@@ -458,7 +467,8 @@ def detect_template(
         # phase-coherent share, which the pull does not move, on c itself.
         s_shape = 0.0
         if w > 0.0:
-            s_shape += w * math.sqrt(eps) / (2.0 * math.pi * wf.beta)
+            # The real part's peak has curvature (2 pi F_w)^2: the bound with F_w.
+            s_shape += w * math.sqrt(eps) / (2.0 * math.pi * wf.f_rms)
         if w < 1.0:
             lm = lag - (pull if abs(pull) > LEAK_CORRECT_LOBE * wf.half_lobe else 0.0)
             jm = int(round(lm))

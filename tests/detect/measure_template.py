@@ -199,6 +199,11 @@ def rooms(n_per_sweep: int = 25, seed: int = 16) -> None:
                 zi = z[i * per : (i + 1) * per]
                 print(f"   {f0:.0f}-{f1:.0f} Hz {d} s: |err|/sigma median {np.median(zi):.2f}, "
                       f"within 2 sigma {np.mean(zi <= 2):.0%}")  # fmt: skip
+            # Pooled as test_two_way_sigma_is_neither_too_confident_nor_too_cautious does.
+            for name, lo in (("17-20 kHz", 0), ("20 Hz-20 kHz", 1)):
+                zi = np.concatenate([z[i * per : (i + 1) * per] for i in (lo, lo + 2)])
+                print(f"   {name} pooled: |err|/sigma median {np.median(zi):.3f}, max "
+                      f"{zi.max():.2f}")  # fmt: skip
 
 
 def transducer(n: int = 20) -> None:
