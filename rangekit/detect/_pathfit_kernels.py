@@ -84,20 +84,11 @@ def _vp_py(rows: np.ndarray, x: np.ndarray, n: int):
             bx[a_] += ba * xt
             for b_ in range(a_ + 1):
                 gram[a_, b_] += ba * basis[t, b_]
-    lo = np.zeros((m2, m2))
-    if not _cholesky(gram, m2, lo):
+    # G^-1 column by column from its Cholesky factor (forward and back substitution).
+    gi = np.empty((m2, m2))
+    if not _inverse_spd(gram, m2, gi):
         e = np.empty((0, 0))
         return False, e, e, np.empty(0), np.empty(0), 0.0, e, e
-    # G^-1 column by column from the factor (forward and back substitution).
-    gi = np.empty((m2, m2))
-    unit = np.zeros(m2)
-    col = np.empty(m2)
-    for c in range(m2):
-        unit[c] = 1.0
-        _chol_solve(lo, m2, unit, col)
-        unit[c] = 0.0
-        for i in range(m2):
-            gi[i, c] = col[i]
     a = np.zeros(m2)
     for i in range(m2):
         s = 0.0
@@ -150,18 +141,12 @@ def _vp_py(rows: np.ndarray, x: np.ndarray, n: int):
     return True, basis, gi, a, r, cost, jac, jp
 
 
-def _lm_step_py(jp: np.ndarray, r: np.ndarray, p: int, lam: float, lim: np.ndarray):
-    """One Levenberg-Marquardt proposal from the projected Jacobian's first ``p`` columns.
-
-    Returns ``(gn, lam, step)``: ``gn = g^T (J^T J)^-1 g`` (the Gauss-Newton step's gain;
-    nan where ``J^T J`` is singular), the damping the step was solved at (raised tenfold
-    while ``J^T J + lam diag`` is singular; ``>= 1e8``: no step) and the step, scaled as a
-    whole so that no parameter moves more than ``lim``.
-    """
-    n = jp.shape[0]
+def _normal_py(jp: np.ndarray, r: np.ndarray, p: int):
+    """``(J^T J, J^T r)`` of the first ``p`` columns of ``jp`` (the normal equations of a
+    Gauss-Newton step), summed row by row."""
     jtj = np.zeros((p, p))
     g = np.zeros(p)
-    for t in range(n):
+    for t in range(jp.shape[0]):
         rt = r[t]
         for i in range(p):
             ji = jp[t, i]
@@ -171,6 +156,18 @@ def _lm_step_py(jp: np.ndarray, r: np.ndarray, p: int, lam: float, lim: np.ndarr
     for i in range(p):
         for j in range(i):
             jtj[j, i] = jtj[i, j]
+    return jtj, g
+
+
+def _lm_step_py(jp: np.ndarray, r: np.ndarray, p: int, lam: float, lim: np.ndarray):
+    """One Levenberg-Marquardt proposal from the projected Jacobian's first ``p`` columns.
+
+    Returns ``(gn, lam, step)``: ``gn = g^T (J^T J)^-1 g`` (the Gauss-Newton step's gain;
+    nan where ``J^T J`` is singular), the damping the step was solved at (raised tenfold
+    while ``J^T J + lam diag`` is singular; ``>= 1e8``: no step) and the step, scaled as a
+    whole so that no parameter moves more than ``lim``.
+    """
+    jtj, g = _normal_py(jp, r, p)
     d = np.empty(p)
     for i in range(p):
         d[i] = jtj[i, i] if jtj[i, i] > 0.0 else 1.0
@@ -369,18 +366,7 @@ def _held_summary_py(
     if not ok:
         return False, a, cost, 0.0, e2, e2, e1, e2, e1, e2
     q = k + p
-    jtj = np.zeros((q, q))
-    g = np.zeros(q)
-    for t in range(n):
-        rt = r[t]
-        for i in range(q):
-            ji = jp[t, i]
-            g[i] += ji * rt
-            for j in range(i + 1):
-                jtj[i, j] += ji * jp[t, j]
-    for i in range(q):
-        for j in range(i):
-            jtj[j, i] = jtj[i, j]
+    jtj, g = _normal_py(jp, r, q)
     sig_energy = 0.0
     m2 = basis.shape[1]
     for t in range(n):
@@ -532,8 +518,8 @@ def _held_result_py(
 _KERNELS = {"vp": _vp_py, "lm_step": _lm_step_py, "held_fit": _held_fit_py,
             "shift_rows": _shift_rows_py, "held_result": _held_result_py}  # fmt: skip
 #: Helpers the kernels call, compiled into this module's namespace first.
-_HELPERS = ("_cholesky", "_chol_solve", "_vp_py", "_lm_step_py", "_shift_rows_py",
-            "_shift_row_py", "_inverse_spd", "_held_summary_py", "_stable_order")  # fmt: skip
+_HELPERS = ("_cholesky", "_chol_solve", "_normal_py", "_inverse_spd", "_vp_py", "_lm_step_py",
+            "_shift_rows_py", "_shift_row_py", "_held_summary_py", "_stable_order")  # fmt: skip
 
 
 @functools.cache
