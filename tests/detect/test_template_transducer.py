@@ -5,7 +5,9 @@ its band as propagation. The term bounds it for a minimum-phase chain whose magn
 ripples by +-``ripple_db`` (``docs/theory/probes.md``, uncertainty). Checked here on
 chains built independently of the detector (a log-magnitude ripple made minimum-phase
 through the real cepstrum, scipy/numpy only) against the chain's own pulse peak (the
-convention of measured impulse responses), and through two-way ranging, where it cancels.
+convention of measured impulse responses) or, for the phase-coherent timing of a wide
+probe, whose term is the pulse peak's own delay, against the chain's onset; and through
+two-way ranging, where it cancels.
 """
 
 from __future__ import annotations
