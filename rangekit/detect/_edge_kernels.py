@@ -550,8 +550,11 @@ def _median_py(v: np.ndarray, m: int) -> float:
 
 
 def _better_line(n, cost, mean, n_best, cost_best, mean_best) -> bool:
-    """``changepoint._better_line``: more bursts, else a lower cost (beyond 1e-9), else an
-    earlier mean."""
+    """Whether a candidate drift line (``changepoint._combine``, :func:`_combine_py`)
+    holding ``n`` bursts at ``cost`` (their summed squared residual over timing noise)
+    with mean estimate ``mean`` beats the best so far: more bursts, else a lower cost (by
+    more than 1e-9: rounding), else an earlier mean (a burst timed on a reflection is
+    late). ``changepoint`` imports this function before it is compiled."""
     if n != n_best:
         return n > n_best
     if abs(cost - cost_best) > 1e-9:

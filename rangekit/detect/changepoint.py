@@ -39,6 +39,7 @@ import numpy as np
 
 from rangekit import _validate as V
 from rangekit.detect import _edge_kernels
+from rangekit.detect._edge_kernels import _better_line
 from rangekit.detect._edge_kernels import _drift_half_py as _drift_half
 from rangekit.detect._kernels import band_energy
 from rangekit.detect.condition import (
@@ -842,18 +843,6 @@ def _allowed_scatter(scale, sigma, k, spacing):
     :data:`MAX_DRIFT` of clock-rate mismatch per spacing (``k`` = 0: the timing noise
     alone, the tolerance about :func:`_drift_line`)."""
     return 2.0 * scale + 4.0 * sigma + MAX_DRIFT * k * spacing
-
-
-def _better_line(n, cost, mean, n_best, cost_best, mean_best) -> bool:
-    """Whether a candidate drift line holding ``n`` bursts at ``cost`` (their summed
-    squared residual over timing noise) with mean estimate ``mean`` beats the best so far:
-    more bursts, else a lower cost (by more than 1e-9: rounding), else an earlier mean
-    (``_edge_kernels._combine_py`` applies the same rule)."""
-    if n != n_best:
-        return n > n_best
-    if abs(cost - cost_best) > 1e-9:
-        return cost < cost_best
-    return mean < mean_best
 
 
 def _drift_line(ks, est, w, members, spacing):
