@@ -74,6 +74,8 @@ import numpy as np
 from rangekit import _validate as V
 from rangekit.detect._coherent import (
     COHERENT_SIDE,
+    SINC_HALF,
+    _sinc_at,
     coherent_interp_rms,
     coherent_lag,
     coherent_weight,
@@ -313,7 +315,11 @@ def detect_template(
     ``sqrt(eps) / (2 pi beta)`` (derivation in ``docs/theory/probes.md``); the
     phase-coherent timing's share ``w`` (the real part's peak, of curvature ``(2 pi
     F_w)^2``, ``F_w`` the RMS frequency of ``|S|^2 W`` about 0) takes ``F_w`` for
-    ``beta_w``, as its Cramér–Rao term does. For the envelope timing's share ``1 - w``,
+    ``beta_w``, as its Cramér–Rao term does, and reads ``eps`` on the residual's odd part
+    about the path only (:func:`_odd_eps`: the even part, ``e(tau - u) = (alpha / conj
+    alpha) conj(e(tau + u))``, e.g. a magnitude-only change such as air absorption,
+    leaves ``Re{conj(alpha) c}`` and ``|c|`` symmetric about ``tau`` and moves neither
+    peak). For the envelope timing's share ``1 - w``,
     ``eps`` is read at the onset the pull was taken from, with the other paths of
     ``s_leak`` subtracted (:func:`_unexplained`): their side lobes in the main lobe *are*
     the pull, which ``s_leak`` holds, and were counted twice before (17-20 kHz in rooms:
@@ -449,7 +455,7 @@ def detect_template(
                 s_interp = w * wf.coherent_rms + (1.0 - w) * s_interp
                 lag += w * d
         j = int(round(lag))
-        eps, ambiguous_near = _shape(c, j, lag - j, wf, floor)
+        _, ambiguous_near = _shape(c, j, lag - j, wf, floor)
         # The chain's phase ripple moves the envelope peak by up to A / (2 pi beta_w) and
         # the pulse's peak (real part) by up to A / (2 pi F_w) (docs/theory/probes.md).
         s_td = ((1.0 - w) / wf.beta + w / wf.f_rms) * s_td_env
@@ -467,8 +473,10 @@ def detect_template(
         # phase-coherent share, which the pull does not move, on c itself.
         s_shape = 0.0
         if w > 0.0:
-            # The real part's peak has curvature (2 pi F_w)^2: the bound with F_w.
-            s_shape += w * math.sqrt(eps) / (2.0 * math.pi * wf.f_rms)
+            # The real part's peak has curvature (2 pi F_w)^2: the bound with F_w, on the
+            # residual's reflection-odd part (an even residual moves neither peak).
+            eps_odd = _odd_eps(c, j, lag - j, wf, floor)
+            s_shape += w * math.sqrt(eps_odd) / (2.0 * math.pi * wf.f_rms)
         if w < 1.0:
             lm = lag - (pull if abs(pull) > LEAK_CORRECT_LOBE * wf.half_lobe else 0.0)
             jm = int(round(lm))
@@ -703,6 +711,52 @@ def _shape(c: np.ndarray, j: int, d: float, wf: _Filter, floor: float) -> tuple[
     pk = np.flatnonzero((res[1:-1] >= res[:-2]) & (res[1:-1] > res[2:])) + 1
     rival = bool(np.any(res[pk] >= AMBIGUOUS_REL * h)) if h > 0 else False
     return eps, rival
+
+
+def _odd_eps(c: np.ndarray, j: int, d: float, wf: _Filter, floor: float) -> float:
+    """Energy fraction of the main lobe at ``tau = j + d`` in the residual's odd part.
+
+    The residual ``e = c - alpha R(l - tau)`` over ``tau +- half_lobe`` (``alpha``, ``R``
+    as in :func:`_shape`) splits about ``tau`` into an even part, ``e(tau - u) = p
+    conj(e(tau + u))`` with ``p = alpha / conj(alpha)`` (the symmetry of ``alpha R``
+    itself: ``R(-u) = conj(R(u))``), and an odd part ``e_o(tau + u) = (e(tau + u) - p
+    conj(e(tau - u))) / 2``; the reflected samples are read band-limited (Kaiser-windowed
+    sinc, :func:`rangekit.detect._coherent._sinc_at`). Rotated by ``conj(alpha)``, an even
+    part has an even real part and an odd imaginary part, so it adds an even function to
+    ``Re{conj(alpha) c}`` and to ``|c|^2`` about ``tau``: it moves neither the real
+    part's extremum nor the envelope's. Returns ``max(0, |e_o|^2 / |c|^2 -
+    noise share / 2)`` over the main lobe (white noise splits evenly between the parts).
+    0 when the window does not fit.
+    """
+    K = wf.half_lobe
+    m = len(wf.self_resp) // 2
+    pad = SINC_HALF + 2  # the reflection's interpolation reaches this far beyond the lobe
+    h = K + pad
+    lo, hi = j - h, j + h + 1
+    if lo < 0 or hi > len(c) or m < h + 1:
+        return 0.0
+    R = _shifted(wf.self_resp, d)[m - h : m + h + 1]
+    seg = c[lo:hi]
+    core = slice(pad, pad + 2 * K + 1)
+    r, s = R[core], seg[core]
+    rr = float(np.vdot(r, r).real)
+    ss = float(np.vdot(s, s).real)
+    if rr <= 0 or ss <= 0:
+        return 0.0
+    alpha = np.vdot(r, s) / rr
+    e = seg - alpha * R
+    e_re, e_im = np.ascontiguousarray(e.real), np.ascontiguousarray(e.imag)
+    p = alpha / np.conj(alpha) if abs(alpha) > 0 else 1.0
+    # seg index h + d is tau; index i reflects to 2 (h + d) - i.
+    refl = np.array(
+        [
+            complex(_sinc_at(e_re, 2 * h + 2 * d - i), _sinc_at(e_im, 2 * h + 2 * d - i))
+            for i in range(pad, pad + 2 * K + 1)
+        ]
+    )
+    e_odd = 0.5 * (e[core] - p * np.conj(refl))
+    noise_share = (2 * K + 1) * 2.0 * floor**2 / ss
+    return max(0.0, float(np.vdot(e_odd, e_odd).real) / ss - 0.5 * noise_share)
 
 
 def _other_paths(

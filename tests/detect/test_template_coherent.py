@@ -112,3 +112,31 @@ def test_coherent_sigma_matches_the_scatter_in_white_noise():
     ratio = np.std(errs) / np.median(sig)
     assert 0.6 < ratio < 2.0, (np.std(errs), np.median(sig))  # measured 1.2
     assert np.std(errs) < 0.13  # measured 0.067 samples (envelope timing: ~0.11)
+
+
+@pytest.mark.parametrize("d", [0.0, 0.3, -0.45])
+def test_only_the_residuals_odd_part_counts_for_the_pulse_peak(d):
+    """A zero-phase (magnitude-only, as air absorption) change of the self response leaves
+    a residual that is even about the path and moves neither peak: ``_odd_eps`` is ~0
+    (measured <= 9.4e-5, 1e-24 at d = 0) where ``_shape``'s ``eps`` is 0.30; an echo 3
+    samples late (0.3x) is partly odd (measured 0.53-0.64 of its ``eps``)."""
+    from rangekit.detect.template import _odd_eps, _shape, _shifted
+
+    wf = _unweighted(linear_sweep(200.0, 13000.0, 0.2, fs=FS), FS, 1 << 15, 882)
+    R = wf.self_resp
+    m = len(R) // 2
+    f = np.fft.fftfreq(len(R))
+    lowpass = np.fft.ifft(np.fft.fft(R) * np.exp(-((f / 0.15) ** 2)))  # real response
+    echo = R + 0.3 * _shifted(R, 3.0)
+    alpha = 0.7 * np.exp(1.1j)
+    out = {}
+    for name, r in (("lowpass", lowpass), ("echo", echo)):
+        c = np.zeros(4 * len(R), complex)
+        j = 2 * len(R)
+        c[j - m : j + m + 1] = alpha * _shifted(r, d)
+        out[name] = (_shape(c, j, d, wf, 0.0)[0], _odd_eps(c, j, d, wf, 0.0))
+    eps, odd = out["lowpass"]
+    assert eps > 0.2  # measured 0.30
+    assert odd < 2e-4  # measured <= 9.4e-5 (the reflection's interpolation)
+    eps, odd = out["echo"]
+    assert 0.3 * eps < odd < 0.9 * eps  # measured 0.53-0.64 of eps
