@@ -171,8 +171,9 @@ def test_an_exchange_with_150_ppm_between_the_clocks_keeps_every_burst(seed):
     place (measured <= 0.59; 0.73 without drift; the first-path search now widens by the
     drift: burst 3 was 2.4 samples off), the onset 1.5 bursts of drift after the true one
     within 2 sigma, and the two far arrivals' drift offsets cancel to within 2 samples
-    (measured 0.16-1.0: the bursts' weights differ between the two). Before the drift line burst 0 of both far beeps was
-    rejected (confidence 0.75, ``inconsistent_bursts``)."""
+    (measured 0.16-1.0: the bursts' weights differ between the two). Before the drift
+    line burst 0 of both far beeps was rejected (confidence 0.75,
+    ``inconsistent_bursts``)."""
     rng = np.random.default_rng(seed)
     b = Beep(spacing=22050)
     devs = pair_devices(float(rng.uniform(1.0, 6.0)), self_distance_m=0.1, clock_ppm=(75.0, -75.0))
