@@ -76,6 +76,7 @@ TESTS: dict[str, tuple[str, ...]] = {
         "tests/detect/test_precursor.py",
         "tests/detect/test_edge_kernels.py",
         "tests/detect/test_combine_drift.py",
+        "tests/detect/test_changepoint_mutation3.py",
     ),
     "rangekit/detect/_kernels.py": ("tests/detect/test_kernels.py",),
     "rangekit/detect/condition.py": ("tests/detect/test_condition.py",),
@@ -172,6 +173,8 @@ EQUIVALENT: dict[str, dict[tuple, str]] = {
             "keep is built with one entry per row: strict never raises",
         ("half = (len(cond.taps) - 1) // 2 if cond.taps is not None else 0", "0 -> 1"):
             "without taps the compiled loop reads no half (no band-limiting)",
+        ("if expected is not None and len(arr) > expected:", "> -> >="):
+            "at len(arr) == expected the trim drops order[:0], none: take(arange(n)) is arr",
     },
     "rangekit/detect/condition.py": {
         ("low_pass_only = False", "False -> True"): "only `width` reads it, `tw` either way",
