@@ -14,8 +14,10 @@ import pytest
 
 from rangekit.detect import _edge_kernels as K
 from rangekit.detect import changepoint as cp
+from rangekit.detect._kernels import band_energy
 from rangekit.signals import Beep
 from rangekit.signals.beep import beep_continuous
+from rangekit.types import Arrivals, flag_bit
 
 FS = 44100.0
 
@@ -53,7 +55,7 @@ def test_a_burst_masked_by_a_loud_tone_one_spacing_on_is_still_tested(tone):
             arr = cp.detect_changepoint(_masked_after(seed, tone, lone), fs=FS)
             assert len(arr) == 1 and abs(arr.onset[0] - 20000.3) < 0.1  # measured 0.01
             assert ("ambiguous_first_path" in arr.flag_names(0)) == flagged, (seed, lone)
-            assert arr.flags[0] & ~cp.flag_bit("ambiguous_first_path") == 0
+            assert arr.flags[0] & ~flag_bit("ambiguous_first_path") == 0
 
 
 def test_the_masked_place_is_read_against_the_burst_a_shifted_beep_would_drop(monkeypatch):
@@ -127,3 +129,42 @@ def test_anchors_one_hop_apart_are_the_same_edge(monkeypatch):
     starts = np.array([3200, 3232, 3296], dtype=np.int64)
     kernel = K._dedupe_py(starts, np.full(3, 2, dtype=np.int64), 2, 32)
     assert kernel.tolist() == seen
+
+
+def _shift_flag_at_start(t0: int, *, lone: bool, condition: bool) -> int:
+    """``_shift_flags`` of one arrival of the default beep timed at sample ``t0`` (its
+    four bursts found, sigma 0.25), with a lone burst as strong (peak 0.5) one spacing
+    before it when ``lone``, on a band energy of 16-sample windows at a hop of 1 (so
+    the band levels of a place 26 samples into the recording exist); noise 0.001."""
+    beep, n_win, hop = Beep(), 16, 1
+    s = beep.spacing
+    n = t0 + 4 * s + 3000
+    x = _burst(n, t0, 0.5, beep=beep) + 0.001 * np.random.default_rng(0).standard_normal(n)
+    if lone:
+        x += _burst(n, t0 - s, 0.5, beep=Beep(n_bursts=1))
+    e = band_energy(x, fs=FS, f_hz=np.array([beep.f_hz]), n_win=n_win, hop=hop).ravel()
+    cs = np.concatenate(([0.0], np.cumsum(e)))
+    cond = cp._conditioner(x, fs=FS, beep=beep, condition=condition)
+    arr = Arrivals(
+        np.array([float(t0)]), FS, np.array([0.25]), np.array([30.0]), np.array([1.0]),
+        np.array([[t0 + k * s for k in range(4)]], dtype=float), "changepoint",
+    )  # fmt: skip
+    out = cp._shift_flags(arr, cond, e, cs, fs=FS, beep=beep, n_win=n_win, hop=hop, bg=True)
+    return int(out.flags[0])
+
+
+@pytest.mark.parametrize("condition", [False, True])
+def test_a_shifted_place_whose_stretch_starts_at_sample_0_is_tested(condition):
+    """``_shift_flags`` tests the edge statistic over the place one spacing before the
+    beep plus the allowed scatter and a taper either side, ``p - tol - sep ... p + tol +
+    sep``, wherever that stretch lies in the recording: here tol = ceil(2 + 4 x 0.25 +
+    200 ppm x 5000) = 4 and sep = 22 (the taper), so a beep at 5026 puts the stretch's
+    first sample at 0: tested, and the lone burst there flags ``ambiguous_first_path``
+    (as at 5027 and 5100); at 5025 it would start at -1: not tested, no flag. Without the
+    lone burst, no flag."""
+    bit = flag_bit("ambiguous_first_path")
+    tol = int(np.ceil(cp._allowed_scatter(1.0, 0.25, 1, Beep().spacing)))
+    assert (tol, max(2, round(Beep().taper_s * FS))) == (4, 22)
+    for t0, flag in ((5025, 0), (5026, bit), (5027, bit), (5100, bit)):
+        assert _shift_flag_at_start(t0, lone=True, condition=condition) == flag, t0
+    assert _shift_flag_at_start(5026, lone=False, condition=condition) == 0
