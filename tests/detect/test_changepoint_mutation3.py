@@ -9,12 +9,15 @@ comments), on short synthetic inputs.
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
 from rangekit.detect import _edge_kernels as K
 from rangekit.detect import changepoint as cp
 from rangekit.detect._kernels import band_energy
+from rangekit.detect.refine import _window
 from rangekit.signals import Beep
 from rangekit.signals.beep import beep_continuous
 from rangekit.types import Arrivals, flag_bit
@@ -168,3 +171,32 @@ def test_a_shifted_place_whose_stretch_starts_at_sample_0_is_tested(condition):
     for t0, flag in ((5025, 0), (5026, bit), (5027, bit), (5100, bit)):
         assert _shift_flag_at_start(t0, lone=True, condition=condition) == flag, t0
     assert _shift_flag_at_start(5026, lone=False, condition=condition) == 0
+
+
+def test_the_raw_statistic_of_a_clipped_burst_fits_from_the_recordings_first_sample():
+    """``_burst_stat`` on a clipped stretch computes the statistic on the raw samples
+    (clipped ones left out) over the same stretch as the band-limited one, cut at the
+    recording's start alike; ``_stat_on`` gives 0 only where the window does not fit.
+    The window reads ``pre`` (24) samples before an onset, so near the start the first
+    onset with a statistic is sample 24, for the raw samples as for the band-limited
+    ones: a burst at 34, three times 0.5 and clipped at 0.6, onsets 22-46: 0 at 22 and
+    23, nonzero from 24 on (measured 69 at 24), the largest at the burst (34)."""
+    beep = Beep(n_bursts=1)
+    pre, _ = _window(FS, beep, None, None)
+    assert pre == 24
+    n, at = 3000, pre + 10
+    x = _burst(n, at, 1.5, beep=beep) + 0.001 * np.random.default_rng(0).standard_normal(n)
+    x = np.clip(x, -0.6, 0.6)
+    kw = {"fs": FS, "beep": beep, "background": True}
+    cond = cp._conditioner(x, fs=FS, beep=beep, condition=True)
+    assert cond.is_clipped(0, 100)
+    _, off, f = cp._burst_stat(cond, at, -12, 25, **kw)
+    plain = cp._conditioner(x, fs=FS, beep=beep, condition=True)
+    plain = replace(plain, clipped=None)  # the band-limited statistic alone
+    _, _, f_band = cp._burst_stat(plain, at, -12, 25, **kw)
+    onsets = at - 12 + np.arange(25)
+    assert off == 0
+    assert (onsets[f > 0] >= pre).all() and f[onsets == pre][0] > 0
+    assert ((f > 0) == (f_band > 0)).all()
+    assert not np.allclose(f, f_band)  # the raw one was used
+    assert onsets[np.argmax(f)] == at
