@@ -304,7 +304,7 @@ EQUIVALENT: dict[str, dict[tuple, str]] = {
             "valid pairs explain a non-negative energy and win; the fill value is not used",
         ("if math.sqrt(max(p, 0.0)) / sigma < k_add:", "< -> <="):
             "a tie of a float statistic with k_add, never met",
-        ("misfit = (cost - dof * sigma**2) / sig_energy if sig_energy > 0 else 0.0",
+        ("misfit = (st.cost - dof * sigma**2) / sig_energy if sig_energy > 0 else 0.0",
          "> -> >="): "a fit above k_add noise scales has a nonzero signal energy",
         ("mean = theta[0]", "0 -> 1"): "overwritten by the loop's first pass before any use",
         ("half = np.flatnonzero(r[: model.n_fft // 2] < 0.5 * r[0])", "< -> <="):

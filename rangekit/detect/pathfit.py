@@ -1058,9 +1058,8 @@ def _summarize(st, seg, n0, model, sigma, k_noise, rel_threshold, lo, hi, free=T
             return out
     if not st.with_theta:
         st = _evaluate(seg, model, st.u, st.theta, True)
-    a, cost = st.a, st.cost
     k = len(st.u)
-    amp = np.hypot(a[0::2], a[1::2])
+    amp = _amps(st)
     e = _energy(model, st.theta)
     snr = amp * math.sqrt(e) / sigma
     u_abs = n0 + st.u
@@ -1075,8 +1074,6 @@ def _summarize(st, seg, n0, model, sigma, k_noise, rel_threshold, lo, hi, free=T
             if amp[i] >= rel_threshold * top:
                 first = int(i)
                 break
-    p = model.n_theta
-    theta_lin = st.theta.copy()
     # Gauss-Newton blocks of the projected Jacobian: onsets (A), theta (C), cross (B).
     jp = _projected(st)
     ju, jt = jp[:, :k], jp[:, k:]
@@ -1087,37 +1084,36 @@ def _summarize(st, seg, n0, model, sigma, k_noise, rel_threshold, lo, hi, free=T
     except np.linalg.LinAlgError:
         return None
     S = C - B.T @ ai @ B
+    p = model.n_theta
+    theta_lin = st.theta.copy()
     # One Newton step to the optimum in the onsets (~0 after a converged fit).
     newton = float((ai @ gu)[first])
+    onset_lin = float(u_abs[first] + (newton if abs(newton) < 1.0 else 0.0))
     gain = -(ai @ B)[first]
+    var_given = sigma**2 * float(ai[first, first])
     try:
         theta_hat = theta_lin + np.linalg.solve(S, gt - B.T @ ai @ gu)
         info = S / sigma**2
         cov_t = np.linalg.inv(info)
     except np.linalg.LinAlgError:
         theta_hat, info, cov_t = theta_lin, np.zeros((p, p)), np.zeros((p, p))
-    sig_energy = float(np.sum((st.basis @ st.a) ** 2))
-    onset_lin = float(u_abs[first] + (newton if abs(newton) < 1.0 else 0.0))
-    var_given = sigma**2 * float(ai[first, first])
     if not np.all(np.isfinite(theta_hat)) or np.any(
         np.abs(theta_hat - theta_lin) > 3.0 * model.theta_step()
     ):
         theta_hat = theta_lin  # a Newton step beyond the fit's reach: keep the fit's value
-    n = len(seg)
+    n = len(st.r)
     n_par = 3 * k + (p if free else 0)
     dof = max(1, n - 2 * k - k - 2)
-    misfit = (cost - dof * sigma**2) / sig_energy if sig_energy > 0 else 0.0
+    sig_energy = float(np.sum((st.basis @ st.a) ** 2))
+    misfit = (st.cost - dof * sigma**2) / sig_energy if sig_energy > 0 else 0.0
     order = np.argsort(u_abs, kind="stable")
     onsets = u_abs[order].copy()
     first_s = int(np.flatnonzero(order == first)[0])
     onsets[first_s] = onset_lin
-    # PathFit.at(theta_hat, cov_t, pooled=False) of the fit at theta_lin, in one step.
-    onset = onsets[first_s] + float(gain @ (theta_hat - theta_lin))
-    var = var_given + float(gain @ cov_t @ gain)
-    q, f0 = model.q_f0(theta_hat)
-    return PathFit(
-        onset=float(onset),
-        sigma=math.sqrt(max(var, 0.0)),
+    q, f0 = model.q_f0(theta_lin)
+    fit = PathFit(
+        onset=onset_lin,
+        sigma=math.sqrt(var_given),
         snr=float(snr[first]),
         q=q,
         f0_hz=f0,
@@ -1125,19 +1121,20 @@ def _summarize(st, seg, n0, model, sigma, k_noise, rel_threshold, lo, hi, free=T
         amplitudes=amp[order],
         first=first_s,
         misfit=float(misfit),
-        misfit_z=float((cost / sigma**2 - dof) / math.sqrt(2.0 * dof)),
+        misfit_z=float((st.cost / sigma**2 - dof) / math.sqrt(2.0 * dof)),
         resolution=_resolution(model, st.theta),
         theta_lin=theta_lin,
         gain=gain,
         var_given=var_given,
-        theta_hat=np.asarray(theta_hat, dtype=np.float64),
+        theta_hat=theta_lin,
         info=info,
         family=model.family,
-        chi2=float(cost / sigma**2),
+        chi2=float(st.cost / sigma**2),
         n_par=n_par,
         q_of=model.q_f0,
         n0=int(n0),
     )
+    return fit.at(theta_hat, cov_t, pooled=False)
 
 
 #: :func:`_held_result`'s answer where the reference must run.
