@@ -33,6 +33,15 @@ With no module, every module of :data:`TESTS` is checked. The last line of each 
 an ``@row`` (``benchmarks/_report.py``) with the score; ``--json FILE`` writes every
 mutant's outcome, and ``--rerun FILE`` runs only that file's survivors (whose source site
 is unchanged) against the tests as they are now. The numbers are in ``docs/evidence.md``.
+
+A package's score (issue 21 asks for ``rangekit/detect`` and ``rangekit/ranging``):
+``--pooled N`` with a folder draws ``N`` sites from the union of the sites of its modules
+that have a :data:`TESTS` entry, so each module weighs by its number of sites; each mutant
+runs against its own module's tests, and the pooled score is printed beside the
+per-module counts, with the modules of the folder that have no entry (and their sites)
+named, since they are outside the score::
+
+    nice -n 10 python benchmarks/mutation.py rangekit/ranging --pooled 60 --seed 100
 """
 
 from __future__ import annotations
@@ -122,6 +131,21 @@ TESTS: dict[str, tuple[str, ...]] = {
         "tests/detect/test_fitted_mutation.py",
     ),
     "rangekit/detect/_pathfit_kernels.py": ("tests/detect/test_pathfit_kernels.py",),
+    "rangekit/detect/_edge_kernels.py": (
+        "tests/detect/test_edge_kernels.py",
+        "tests/detect/test_combine_drift.py",
+    ),
+    "rangekit/detect/__init__.py": ("tests/detect/test_front.py",),
+    "rangekit/detect/files.py": (
+        "tests/detect/test_detect_files.py",
+        "tests/cli/test_detect_library.py",
+    ),
+    "rangekit/detect/_fft.py": ("tests/detect/test_pathfit.py",),
+    "rangekit/detect/_kernel_choice.py": ("tests/detect/test_pathfit_kernels.py",),
+    "rangekit/ranging/ultrasonic_setup.py": (
+        "tests/ranging/test_ultrasonic_setup.py",
+        "tests/cli/test_ultrasonic_setup_cli.py",
+    ),
     "rangekit/detect/_coherent.py": (
         "tests/detect/test_template_coherent.py",
         "tests/detect/test_coherent_mutation.py",
@@ -629,6 +653,55 @@ def survivors(path: pathlib.Path, module: str) -> tuple[list[Site], int]:
     return sorted(set(found), key=lambda s: (s.line, s.col, s.what)), stale
 
 
+def package_modules(folder: str) -> tuple[list[str], list[str]]:
+    """The modules of :data:`TESTS` under ``folder`` and the ``.py`` files there without
+    an entry (outside any score), each list sorted."""
+    base = folder.rstrip("/") + "/"
+    mapped = sorted(m for m in TESTS if m.startswith(base))
+    files = sorted(str(f.relative_to(ROOT)) for f in (ROOT / folder).rglob("*.py"))
+    return mapped, [f for f in files if f not in TESTS and sites((ROOT / f).read_text("utf-8"))]
+
+
+def pooled_sample(modules: list[str], n: int, seed: int) -> dict[str, list[Site]]:
+    """``n`` sites drawn (seeded, without replacement) from the union of ``modules``'
+    sites, grouped by module: a module's expected share is its share of the sites."""
+    union = [(m, s) for m in modules for s in sites((ROOT / m).read_text(encoding="utf-8"))]
+    rng = np.random.default_rng(seed)
+    pick = sorted(rng.choice(len(union), size=min(n, len(union)), replace=False))
+    out: dict[str, list[Site]] = {}
+    for i in pick:
+        out.setdefault(union[i][0], []).append(union[i][1])
+    return out
+
+
+def pooled_summary(folder: str, results: list[dict], n_sites: int, seed: int,
+                   unmapped: list[str]) -> dict:  # fmt: skip
+    """The package's score over the per-module results of one pooled sample."""
+    valid = sum(r["valid"] for r in results)
+    killed = sum(r["killed"] for r in results)
+    n_eq = sum(r["equivalent"] for r in results)
+    score = killed / valid if valid else float("nan")
+    rest = valid - n_eq
+    score_ne = killed / rest if rest else float("nan")
+    print(f"{folder} (pooled, seed {seed}): killed {killed}/{valid} = {100 * score:.0f} % of "
+          f"{n_sites} sites; {killed}/{rest} = {100 * score_ne:.0f} % without {n_eq} "
+          "listed equivalent")  # fmt: skip
+    for r in results:
+        print(f"  {r['module']}: {r['killed']}/{r['valid']} of {r['sites']} sites")
+    off = {f: len(sites((ROOT / f).read_text(encoding="utf-8"))) for f in unmapped}
+    if off:
+        print("  outside the score (no TESTS entry): "
+              + ", ".join(f"{f} ({k} sites)" for f, k in off.items()))  # fmt: skip
+    note = (f"{killed}/{valid} of a pooled sample (seed {seed}) of {n_sites} sites; "
+            f"{killed}/{rest} without {n_eq} equivalent; {sum(off.values())} sites in "
+            f"{len(off)} unmapped files outside it")  # fmt: skip
+    row("mutation", f"{folder} pooled mutants killed by their modules' tests", 100 * score,
+        "%", note=note)  # fmt: skip
+    return {"package": folder, "sites": n_sites, "killed": killed, "valid": valid,
+            "score": score, "equivalent": n_eq, "score_without_equivalent": score_ne,
+            "unmapped": off}  # fmt: skip
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("modules", nargs="*", help=f"modules of TESTS (default: all {len(TESTS)})")
@@ -650,7 +723,30 @@ def main() -> int:
         metavar="JSON",
         help="run only the survivors of earlier --json files (repeatable) against the tests now",
     )
+    ap.add_argument(
+        "--pooled",
+        type=int,
+        metavar="N",
+        help="with one folder: N sites drawn from all its mapped modules' sites together",
+    )
     args = ap.parse_args()
+    if args.pooled is not None:
+        one_dir = len(args.modules) == 1 and (ROOT / args.modules[0]).is_dir()
+        if not one_dir or args.rerun or args.list:
+            ap.error("--pooled takes one folder (e.g. rangekit/ranging), no --rerun or --list")
+        folder = args.modules[0]
+        mapped, unmapped = package_modules(folder)
+        if not mapped:
+            ap.error(f"{folder!r} has no module with a test mapping")
+        n_sites = sum(len(sites((ROOT / m).read_text(encoding="utf-8"))) for m in mapped)
+        results = []
+        for m, picked in pooled_sample(mapped, args.pooled, args.seed).items():
+            out = check_module(m, n=0, seed=args.seed, timeout_s=args.timeout, only=picked)
+            results.append(summary(m, out, len(sites((ROOT / m).read_text("utf-8"))), args.seed))
+        pooled = pooled_summary(folder, results, n_sites, args.seed, unmapped)
+        if args.json:
+            args.json.write_text(json.dumps([*results, pooled], indent=1) + "\n", "utf-8")
+        return 0
     mods = args.modules or list(TESTS)
     for m in mods:
         if m not in TESTS:

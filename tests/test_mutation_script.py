@@ -56,3 +56,39 @@ def test_summary_sets_equivalent_survivors_apart():
     res = M.summary(module, out, len(all_sites), 0)
     assert (res["killed"], res["valid"], res["equivalent"]) == (2, 4, 1)
     assert res["score"] == 0.5 and res["score_without_equivalent"] == 2 / 3
+
+
+def test_a_pooled_sample_weighs_each_module_by_its_sites():
+    mapped, unmapped = M.package_modules("rangekit/ranging")
+    assert mapped and all(m.startswith("rangekit/ranging/") and m in M.TESTS for m in mapped)
+    assert all(f not in M.TESTS for f in unmapped)
+    n_sites = {m: len(M.sites((ROOT / m).read_text(encoding="utf-8"))) for m in mapped}
+    total = sum(n_sites.values())
+    # seeded, without replacement: the same draw twice, and no site twice
+    a, b = M.pooled_sample(mapped, 300, 3), M.pooled_sample(mapped, 300, 3)
+    assert a == b and sum(len(v) for v in a.values()) == 300
+    assert all(len(set(v)) == len(v) for v in a.values())
+    # each module's share within 4 binomial sigmas of its share of the sites
+    # (hypergeometric: a bit tighter than binomial)
+    for m, k in n_sites.items():
+        p = k / total
+        got = len(a.get(m, []))
+        assert abs(got - 300 * p) <= 4 * (300 * p * (1 - p)) ** 0.5 + 1, (m, got, 300 * p)
+    # the whole union when n exceeds it
+    every = M.pooled_sample(mapped, total + 10, 0)
+    assert sum(len(v) for v in every.values()) == total
+
+
+def test_the_pooled_score_counts_every_module_and_names_the_unmapped(capsys):
+    res = [
+        {"module": "a.py", "sites": 10, "killed": 3, "valid": 4, "equivalent": 1},
+        {"module": "b.py", "sites": 30, "killed": 5, "valid": 6, "equivalent": 0},
+    ]
+    out = M.pooled_summary("rangekit/ranging", res, 40, 7, [])
+    assert out["killed"] == 8 and out["valid"] == 10 and out["score"] == 0.8
+    assert out["score_without_equivalent"] == 8 / 9
+    assert "8/10 = 80 %" in capsys.readouterr().out
+    unmapped = M.package_modules("rangekit/detect")[1]
+    out = M.pooled_summary("rangekit/detect", res, 40, 7, unmapped)
+    assert set(out["unmapped"]) == set(unmapped)
+    assert all(k > 0 for k in out["unmapped"].values())
