@@ -542,11 +542,18 @@ def _run_tests(work: pathlib.Path, args: list[str], timeout_s: float) -> tuple[s
 
 
 def check_module(
-    module: str, *, n: int, seed: int, timeout_s: float, only: list[Site] | None = None
+    module: str,
+    *,
+    n: int,
+    seed: int,
+    timeout_s: float,
+    only: list[Site] | None = None,
+    label: str = "re-run",
 ) -> list[Outcome]:
     """Sample ``n`` sites of ``module`` (seeded) and run its tests on each mutant.
 
-    With ``only``, run exactly those sites (``--rerun``) instead of a sample.
+    With ``only``, run exactly those sites (``--rerun``, or a pooled sample's share:
+    ``label`` says which) instead of a sample.
     """
     tests = [t for t in TESTS[module] if (ROOT / t).exists()]
     source = (ROOT / module).read_text(encoding="utf-8")
@@ -558,7 +565,7 @@ def check_module(
         what = f"{len(sample)} sampled (seed {seed})"
     else:
         sample = only
-        what = f"{len(sample)} re-run"
+        what = f"{len(sample)} {label}"
     print(f"{module}: {len(all_sites)} sites, {what}; tests: " + " ".join(tests), flush=True)
     with tempfile.TemporaryDirectory(prefix="rk-mutation-") as tmp:
         work = pathlib.Path(tmp)
@@ -741,7 +748,10 @@ def main() -> int:
         n_sites = sum(len(sites((ROOT / m).read_text(encoding="utf-8"))) for m in mapped)
         results = []
         for m, picked in pooled_sample(mapped, args.pooled, args.seed).items():
-            out = check_module(m, n=0, seed=args.seed, timeout_s=args.timeout, only=picked)
+            out = check_module(
+                m, n=0, seed=args.seed, timeout_s=args.timeout, only=picked,
+                label=f"of a pooled sample (seed {args.seed})",
+            )  # fmt: skip
             results.append(summary(m, out, len(sites((ROOT / m).read_text("utf-8"))), args.seed))
         pooled = pooled_summary(folder, results, n_sites, args.seed, unmapped)
         if args.json:
