@@ -647,7 +647,7 @@ def survivors(path: pathlib.Path, module: str) -> tuple[list[Site], int]:
     current = set(sites((ROOT / module).read_text(encoding="utf-8")))
     found, stale = [], 0
     for res in json.loads(path.read_text(encoding="utf-8")):
-        if res["module"] != module:
+        if res.get("module") != module:  # a pooled file's last entry is the package's
             continue
         for m in res["mutants"]:
             if m["status"] != "survived":

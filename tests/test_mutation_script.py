@@ -92,3 +92,14 @@ def test_the_pooled_score_counts_every_module_and_names_the_unmapped(capsys):
     out = M.pooled_summary("rangekit/detect", res, 40, 7, unmapped)
     assert set(out["unmapped"]) == set(unmapped)
     assert all(k > 0 for k in out["unmapped"].values())
+
+
+def test_a_pooled_json_file_can_be_rerun(tmp_path):
+    module = "rangekit/ranging/oneway.py"
+    site = M.sites((ROOT / module).read_text(encoding="utf-8"))[0]
+    mutant = {**M.asdict(site), "status": "survived", "seconds": 1.0}
+    pooled = {"package": "rangekit/ranging", "sites": 1, "killed": 0, "valid": 1}
+    f = tmp_path / "pooled.json"
+    f.write_text(M.json.dumps([{"module": module, "mutants": [mutant]}, pooled]), "utf-8")
+    assert M.survivors(f, module) == ([site], 0)
+    assert M.survivors(f, "rangekit/ranging/echo.py") == ([], 0)
