@@ -37,6 +37,24 @@ maximally flat pair, pooled over the receivers of one transmitter) and
 :func:`with_order_terms` adds the next order's step to sigma (a transducer term,
 ``Arrivals.sigma_transducer``).
 
+**Transducer family.** How sure the model choice is rests on a prior: Schwarz's ``ln N``
+is the Occam factor of the stagger's two further parameters for a prior as wide as one
+sample's worth of data. For the resonant piezo of the papers (``transducer_family=
+"resonator"``, the default) that is the right prior: its onsets keep the sigma above.
+A transducer of another shape at low Q and SNR is where it fails: at Q 4 the waveform
+does not tell a coupled pair from a resonator, ``ln N`` makes the resonator "certain",
+and 8 of 30 receivers came back 10-12 mm late at a sigma of 1-2 mm (coupled, Q 4, 10
+dB). ``transducer_family="unknown"`` weighs the models by the data's evidence alone,
+Akaike's weight ``w_A = 1 / (1 + exp(-(n_w median(D_w) - 2 n_free) / 2))`` (the same
+evidence without ``- ln N``; Burnham & Anderson 2002, *Model Selection and Multimodel
+Inference*, sec. 4.3, the model-averaged variance), and counts only the part of ``d^2``
+that is a model's bias: per tested arrival ``max(d^2 - (sigma_s^2 - sigma_r^2), 0)``, the
+two onsets' difference beyond what noise gives where the resonator is right (Hausman
+1978, *Econometrica* 46(6), the difference of an efficient and a consistent estimator),
+so the variance added is ``(1 - w_A,chosen) median(d^2 - dv)``. The model chosen and the
+onsets are the same for both values; only ``sigma`` differs (wider for a resonator:
+docs/accuracy.md, "Transducer family").
+
 Examples
 --------
 >>> from rangekit.detect.matched import coded_template
@@ -74,8 +92,10 @@ from rangekit.types import Arrivals, flag_bit
 
 __all__ = [
     "N_TEST",
+    "TRANSDUCER_FAMILIES",
     "ChannelFit",
     "check_shapes",
+    "check_transducer_family",
     "detect_coded",
     "detect_fitted",
     "fit_channel",
@@ -180,34 +200,79 @@ def _stagger_start(fit_r: PathFit, res_model, stag_model):
     return th, fit_r.onsets + shift
 
 
+#: The values of ``transducer_family`` (:func:`fit_channel`): what a user knows of the
+#: transducers' family before measuring (module doc, **Transducer family**).
+TRANSDUCER_FAMILIES = ("resonator", "unknown")
+
+
+def check_transducer_family(transducer_family: str) -> str:
+    """``transducer_family`` if it is one of :data:`TRANSDUCER_FAMILIES`.
+
+    Examples
+    --------
+    >>> check_transducer_family("unknown")
+    'unknown'
+    >>> check_transducer_family("piezo")  # doctest: +ELLIPSIS
+    Traceback (most recent call last):
+    ...
+    rangekit.errors.InvalidParameterError: transducer_family='piezo' must be one of ...
+    """
+    if not isinstance(transducer_family, str) or transducer_family not in TRANSDUCER_FAMILIES:
+        raise InvalidParameterError(
+            f"{transducer_family=} must be one of {', '.join(TRANSDUCER_FAMILIES)}"
+        )
+    return transducer_family
+
+
+def _logistic(v: float) -> float:
+    """``1 / (1 + exp(-v))``, ``v`` held within +-50."""
+    return 1.0 / (1.0 + math.exp(-max(min(v, 50.0), -50.0)))
+
+
 class _Group:
-    """Per transducer group: both models' running estimates and the model comparison."""
+    """Per transducer group: both models' running estimates and the model comparison
+    (``w``: the chosen model's Schwarz weight; ``w_var``: its Akaike weight, used with
+    ``transducer_family="unknown"``; ``dv``: per test, the noise variance of the two
+    onsets' difference where the resonator is right)."""
 
     def __init__(self) -> None:
         self.acc: dict[str, list] = {"resonator": [], "stagger": []}
         self.tests: list[tuple[float, bool, float, int]] = []
+        self.dv: list[float] = []  # per test: the onsets' difference's noise variance
         self.family: str | None = None
         self.w = 1.0
+        self.w_var = 1.0
 
     def decide(self, force=None) -> None:
         if isinstance(force, tuple):  # the receivers' consensus shape
             self.family, self.w = force[0], 1.0
+            self.w_var = self.w
             return
         if force is not None:
             self.family, self.w = force, 0.5
+            self.w_var = self.w
             return
         if not self.tests:
             self.family, self.w = "resonator", 1.0
+            self.w_var = self.w
             return
         d = np.array([t[0] for t in self.tests])
         n_free = sum(t[1] for t in self.tests)
         n = sum(t[3] for t in self.tests)
         # The median window's evidence, times the windows: one window whose resonator
         # fit stuck in a poor optimum must not decide for the group.
-        logbf = 0.5 * (len(d) * float(np.median(d)) - 2.0 * n_free) - math.log(max(n, 2))
-        w_s = 1.0 / (1.0 + math.exp(-max(min(logbf, 50.0), -50.0)))
+        evidence = 0.5 * (len(d) * float(np.median(d)) - 2.0 * n_free)
+        logbf = evidence - math.log(max(n, 2))
+        w_s = _logistic(logbf)
         self.family = "stagger" if w_s > P_STAGGER else "resonator"
         self.w = w_s if self.family == "stagger" else 1.0 - w_s
+        # transducer_family="unknown": the model-choice variance weighs the models by the
+        # data's evidence alone (the Akaike weight, without Schwarz's ln N Occam factor,
+        # whose size rests on the prior width of the stagger's split: it alone made the
+        # resonator "certain" for coupled Q 4 transducers at 10 dB that it timed 11 mm
+        # late).
+        w_a = _logistic(evidence)
+        self.w_var = w_a if self.family == "stagger" else 1.0 - w_a
 
     def clearly_resonator(self) -> bool:
         """Before ``N_TEST`` tests: the resonator wins even if the remaining tests gave the
@@ -221,6 +286,17 @@ class _Group:
     @property
     def d2(self) -> float:
         return float(np.median([t[2] ** 2 for t in self.tests])) if self.tests else 0.0
+
+    @property
+    def d2_excess(self) -> float:
+        """The median over the tested arrivals of the models' squared onset difference
+        beyond what noise gives where the resonator is right (Hausman 1978: the
+        difference of two estimators, one efficient under the null, has the difference
+        of their variances): the part of ``d2`` that is a model's bias."""
+        if not self.tests:
+            return 0.0
+        d2 = [max(t[2] ** 2 - v, 0.0) for t, v in zip(self.tests, self.dv, strict=True)]
+        return float(np.median(d2))
 
 
 def detect_fitted(x: np.ndarray, **kw) -> Arrivals:
@@ -276,6 +352,7 @@ def fit_channel(
     groups: Sequence[int] | None = None,
     pool: bool = True,
     force: dict | None = None,
+    transducer_family: str = "resonator",
 ) -> ChannelFit:
     """First-path arrivals of one channel, timed by the transducer fit of the chosen model.
 
@@ -301,6 +378,12 @@ def fit_channel(
         the comparison says, with the model-choice variance of an undecided choice, ``w
         = 1/2``) or ``("stagger", theta)`` (by the stagger model held at ``theta`` from
         the first arrival on); what :func:`check_shapes` returns.
+    transducer_family : {"resonator", "unknown"}
+        What is known of the transducers' family before measuring (module doc,
+        **Transducer family**): ``"resonator"`` (default) the resonant piezo of the
+        papers, whose model-choice variance weighs the models by Schwarz's criterion;
+        ``"unknown"`` weighs them by Akaike's (a transducer of either shape, at the
+        price of a wider sigma for a resonator). Only ``sigma`` differs.
 
     Returns
     -------
@@ -309,6 +392,7 @@ def fit_channel(
         ``sigma`` includes the model-choice term, module doc) and the chosen models.
     """
     fs = V.sample_rate(fs)
+    transducer_family = check_transducer_family(transducer_family)
     x = M._check_x("x", x)  # float32 recordings stay float32 (fits read float64 segments)
     res_model = models[0]
     stag_model = models[1] if len(models) > 1 else None
@@ -404,7 +488,11 @@ def fit_channel(
                 d = bic_r - (fs_.chi2 + pen * fs_.n_paths)
                 d = max(d, 0.0)  # the stagger nests the resonator to 1e-4: worse = stuck
                 free = fr.n_par > 3 * fr.n_paths and fs_.n_par > 3 * fs_.n_paths
+                # Hausman (1978): where the resonator is right, the two onsets differ by
+                # noise of variance var(stagger) - var(resonator) (the resonator efficient).
+                dv = max(fs_.sigma**2 - fr.sigma**2, 0.0)
                 g.tests.append((d, free, fs_.onset - fr.onset, n_seg))
+                g.dv.append(dv)
             if len(g.tests) >= N_TEST or (len(g.tests) >= 2 and g.clearly_resonator()):
                 g.decide(force.get(key) if force else None)
         elif g.family == "stagger":
@@ -466,7 +554,12 @@ def fit_channel(
     for i, f in enumerate(chosen):
         if f is not None:
             g = state[keys[i]]
-            extra = (1.0 - g.w) * d2[keys[i]] if stag_model is not None else 0.0
+            if stag_model is None:
+                extra = 0.0
+            elif transducer_family == "resonator":
+                extra = (1.0 - g.w) * d2[keys[i]]
+            else:  # "unknown": the models weighed by Akaike, the bias part of d^2 only
+                extra = (1.0 - g.w_var) * g.d2_excess
             rows[i][0] = f.onset
             rows[i][1] = math.sqrt(M._fit_sigma(f, fs) ** 2 + extra)
             rows[i][2] = f.snr

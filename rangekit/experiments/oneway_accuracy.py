@@ -50,6 +50,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from rangekit import _validate as V
+from rangekit.detect.fitted import TRANSDUCER_FAMILIES
 from rangekit.detect.matched import crb_delay_s
 from rangekit.errors import InvalidParameterError
 from rangekit.physics import DEFAULT_TEMP_C, speed_of_sound_m_s
@@ -341,6 +342,7 @@ def run_q_trials(
     fit_transducers: bool = True,
     pool: bool = True,
     block: int = _BLOCK,
+    transducer_family: str = "resonator",
 ) -> list[dict]:
     """Seeded one-way trials through transducers the ranging does not know.
 
@@ -350,7 +352,7 @@ def run_q_trials(
     activation windows of the one Tx (:func:`render_oneway`, Tx and Rx transducers
     ``make_transducer(model, q)``; ``rx_q`` gives the Rx another Q) and ranges them with
     :func:`range_oneway` as a user would (default Q = 4 starting point, the transducer
-    fit, pooling over the windows of each receiver).
+    fit, pooling over the windows of each receiver; ``transducer_family`` as there).
 
     Returns
     -------
@@ -406,6 +408,7 @@ def run_q_trials(
             block=block,
             fit_transducers=fit_transducers,
             pool=pool,
+            transducer_family=transducer_family,
         )
         sigma = float(sim.truth["noise_sigma"])
         for r in res:
@@ -448,7 +451,9 @@ def summarize_q(rows: Sequence[dict], *, gross_m: float = 0.02) -> dict:
     carrying each flag. ``wrong_unflagged`` counts the gross errors that are unflagged and
     beyond 2 sigma (confidently wrong), ``order_rate`` the fraction of detections whose
     sigma holds the transducer model-order term (:func:`rangekit.detect.fitted.
-    order_terms`), ``median_m`` the median error of all detections.
+    order_terms`), ``median_m`` the median error of all detections, ``median_z`` the
+    median of ``|error| / sigma_m`` over them (0.67 for an honest Gaussian sigma; below:
+    over-cautious).
     """
     if not rows:
         raise InvalidParameterError("no rows to summarize")
@@ -470,6 +475,7 @@ def summarize_q(rows: Sequence[dict], *, gross_m: float = 0.02) -> dict:
         "wrong_unflagged": int((found & ~inl & ~flagged & (a > 2.0 * sig)).sum()),
         "order_rate": float(np.mean(order[found])) if found.any() else 0.0,
         "median_m": float(np.median(err[found])) if found.any() else math.nan,
+        "median_z": float(np.median(a[found] / sig[found])) if found.any() else math.nan,
         "rms_m": float(np.sqrt(np.mean(err[inl] ** 2))) if inl.any() else math.nan,
         "bias_m": float(np.mean(err[inl])) if inl.any() else math.nan,
         "bias_se_m": float(np.std(err[inl]) / math.sqrt(inl.sum())) if inl.sum() > 1 else math.nan,
@@ -645,11 +651,13 @@ def run_room_trials(
     qs: tuple[float, float] = (4.0, 20.0),
     rng=None,
     n_windows: int = 6,
+    transducer_family: str = "resonator",
     **kw,
 ) -> list[dict]:
     """Seeded pyroomacoustics one-way trials (:func:`render_room_oneway`), Q drawn
     log-uniformly in ``qs`` per trial (Tx and Rx alike), ranged by :func:`range_oneway`
-    with its defaults. Rows as :func:`run_q_trials` (``crb_m`` of the direct path)."""
+    with its defaults (``transducer_family`` as there). Rows as :func:`run_q_trials`
+    (``crb_m`` of the direct path)."""
     n_trials = V.positive_int("n_trials", n_trials)
     rng = np.random.default_rng(rng)
     rows: list[dict] = []
@@ -659,8 +667,9 @@ def run_room_trials(
         fs = float(kw.get("fs", 192000.0))
         c = truth["speed_of_sound_m_s"]
         res = range_oneway(
-            x, fs=fs, speed_m_s=c, period_s=truth["window_s"], tx_ids=[0], max_range_m=7.0
-        )
+            x, fs=fs, speed_m_s=c, period_s=truth["window_s"], tx_ids=[0], max_range_m=7.0,
+            transducer_family=transducer_family,
+        )  # fmt: skip
         tx = make_transducer(kw.get("model", "resonator"), q)
         unit = received_waveform(fs=fs, tx=tx, rx=tx, tail_s=0.004)
         crb_unit = c * crb_delay_s(unit, fs=fs, noise_sigma=1.0)
@@ -671,19 +680,24 @@ def run_room_trials(
     return rows
 
 
-def _markdown(table: list[dict], *, at_q: float) -> str:
+def _markdown(table: list[dict], *, at_q: float, median_z: bool = False) -> str:
+    """The table; ``median_z`` adds the column ``median |err|/sigma`` after ``within 2
+    sigma`` (given with ``--transducer-family``: the default table stays as it was)."""
+    z_head, z_rule = (" | median abs err/sigma", "---|") if median_z else ("", "")
     lines = [
         "| SNR dB | Q | RMS mm | bias mm | median mm | known-Q CRB mm | sigma mm "
-        "| within 2 sigma | gross (unflagged, of them beyond 2 sigma) | order term | flags |",
-        "|---|---|---|---|---|---|---|---|---|---|---|",
+        f"| within 2 sigma{z_head} | gross (unflagged, of them beyond 2 sigma) | order term "
+        "| flags |",
+        f"|---|---|---|---|---|---|---|---|{z_rule}---|---|---|",
     ]
     for r in table:
         fl = ", ".join(f"{k} {100 * v:.0f} %" for k, v in r["flag_rates"].items() if v > 0)
+        z = f" {r['median_z']:.2f} |" if median_z else ""
         lines.append(
             f"| {r['snr_db']:g} | {r['q']:g} | {1e3 * r['rms_m']:.2f} | "
             f"{1e3 * r['bias_m']:+.2f} | {1e3 * r['median_m']:+.2f} | "
             f"{1e3 * r['crb_rms_m']:.2f} | {1e3 * r['sigma_rms_m']:.2f} | "
-            f"{100 * r['coverage_2sigma']:.1f} % | {r['gross']}/{r['n']} "
+            f"{100 * r['coverage_2sigma']:.1f} % |{z} {r['gross']}/{r['n']} "
             f"({r['gross_unflagged']}, {r['wrong_unflagged']}) | "
             f"{100 * r['order_rate']:.0f} % | {fl or '-'} |"
         )
@@ -714,7 +728,16 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap.add_argument("--calibrate-at", type=float, default=12.0, help="Q of the calibration")
     ap.add_argument("--no-reflection", action="store_true")
     ap.add_argument("--no-pool", action="store_true")
+    ap.add_argument(
+        "--transducer-family",
+        choices=TRANSDUCER_FAMILIES,
+        default=None,
+        help="what the ranging is told of the transducers' family (range_oneway's "
+        "transducer_family) [default: resonator]; given, the table gains the column "
+        "median abs err/sigma",
+    )
     a = ap.parse_args(argv)
+    fam = {} if a.transducer_family is None else {"transducer_family": a.transducer_family}
     qs = [float(v) for v in a.q.split(",")]
     table = q_table(
         qs=qs,
@@ -725,8 +748,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         seed=a.seed,
         reflection_s=None if a.no_reflection else (0.2e-3, 2.0e-3),
         pool=not a.no_pool,
+        **fam,
     )
-    print(_markdown(table, at_q=a.calibrate_at if a.calibrate_at in qs else qs[0]))
+    at_q = a.calibrate_at if a.calibrate_at in qs else qs[0]
+    print(_markdown(table, at_q=at_q, median_z=a.transducer_family is not None))
     return 0
 
 

@@ -234,6 +234,23 @@ def _check_common(cfg) -> None:
         V.positive_int("channels", cfg.channels)
     if not isinstance(cfg.detection, Detection):
         raise V.InvalidParameterError(f"detection={cfg.detection!r} must be a Detection")
+    if cfg.transducer_family != "resonator":  # the default imports no fit
+        from rangekit.detect.fitted import check_transducer_family
+
+        check_transducer_family(cfg.transducer_family)
+        fit = getattr(cfg, "fit_transducers", getattr(cfg, "fit_transducer", True))
+        if not fit or cfg.transducer is None:
+            raise V.InvalidParameterError(
+                f"transducer_family={cfg.transducer_family!r} applies to the transducer "
+                "fit only (a fitted transducer: Q auto)"
+            )
+
+
+def _family_kwargs(cfg) -> dict[str, Any]:
+    """``{"transducer_family": ...}`` when it is not the default, else ``{}``: a default
+    job's keywords (and a batch's resume fingerprint of them) stay what they were."""
+    fam = cfg.transducer_family
+    return {} if fam == "resonator" else {"transducer_family": fam}
 
 
 @dataclass(frozen=True)
@@ -254,6 +271,10 @@ class OneWaySetup:
     fit_transducers : bool
         Fit each arrival through resonators of unknown Q and f0 (``transducer`` is then
         only the starting point); False folds ``transducer`` into the template as it is.
+    transducer_family : {"resonator", "unknown"}
+        With the fit: the resonant piezo of the papers (default), or a transducer of any
+        shape, whose model error the sigma then covers
+        (:func:`~rangekit.ranging.oneway.range_oneway`).
     latency_s : float
         System latency from the trigger to the drive, s, subtracted (>= 0).
     period_s : float, optional
@@ -271,6 +292,7 @@ class OneWaySetup:
     burst: CodedBurst = field(default_factory=CodedBurst)
     transducer: Transducer | None = _ONEWAY["tx"]
     fit_transducers: bool = _ONEWAY["fit_transducers"]
+    transducer_family: str = _ONEWAY["transducer_family"]
     latency_s: float = _ONEWAY["latency_s"]
     period_s: float | None = _ONEWAY["period_s"]
     tx_ids: tuple[int, ...] | None = _ONEWAY["tx_ids"]
@@ -300,6 +322,7 @@ class OneWaySetup:
             "tx": self.transducer,
             "rx": self.transducer,
             "fit_transducers": self.fit_transducers,
+            **_family_kwargs(self),
             "latency_s": self.latency_s,
             "tx_ids": None if self.tx_ids is None else list(self.tx_ids),
             "min_range_m": self.min_range_m,
@@ -332,6 +355,8 @@ class EchoSetup:
         Fit each echo through the transducer twice with Q and f0 unknown (``transducer``
         is then only the starting point); False folds ``transducer`` into the template
         as it is.
+    transducer_family : {"resonator", "unknown"}
+        With the fit: as :class:`OneWaySetup`.
     period_s : float, optional
         The file holds consecutive ranging cycles of this length, s (0.07 for the SRF02,
         :data:`~rangekit.ranging.echo.SRF02_CYCLE_S`) [default: one].
@@ -346,6 +371,7 @@ class EchoSetup:
     burst: CodedBurst = field(default_factory=_srf02_ping)
     transducer: Transducer | None = _ECHO["transducer"]
     fit_transducer: bool = _ECHO["fit_transducer"]
+    transducer_family: str = _ECHO["transducer_family"]
     period_s: float | None = _ECHO["period_s"]
     min_range_m: float = _ECHO["min_range_m"]
     max_range_m: float = _ECHO["max_range_m"]
@@ -364,6 +390,7 @@ class EchoSetup:
             "period_s": self.period_s,
             "transducer": self.transducer,
             "fit_transducer": self.fit_transducer,
+            **_family_kwargs(self),
             "min_range_m": self.min_range_m,
             "max_range_m": self.max_range_m,
             **self.detection.kwargs(),

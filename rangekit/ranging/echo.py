@@ -78,6 +78,7 @@ def range_echo(
     probe: Probe | None = None,
     fit_transducer: bool = True,
     pool: bool = True,
+    transducer_family: str = "resonator",
 ) -> list[ToF]:
     """Pulse-echo ranges (SRF02 style) from a recording whose sample 0 is the ping.
 
@@ -89,11 +90,20 @@ def range_echo(
     by fitting the ping through the transducer twice with Q and f0 unknown
     (``transducer`` is the starting point and sets the nominal f0), ``pool`` pools the
     estimates over the cycles of each channel (the sensor's transducer is one); False
-    folds ``transducer`` into the template as it is. Other parameters as
+    folds ``transducer`` into the template as it is; ``transducer_family`` (with the
+    fit; ``"resonator"`` or ``"unknown"``) what is known of its family, as for
+    :func:`range_oneway` (only sigma differs). Other parameters as
     :func:`range_oneway` (with ``probe`` the template is the probe and ``burst``,
     ``transducer`` are unused).
     """
+    from rangekit.detect.fitted import check_transducer_family
+
     fs = V.sample_rate(fs)
+    transducer_family = check_transducer_family(transducer_family)
+    if transducer_family != "resonator" and not fit_transducer:
+        raise InvalidParameterError(
+            f"{transducer_family=} applies to the transducer fit only (fit_transducer=True)"
+        )
     burst = srf02_ping() if burst is None else burst
     if probe is None:
         check_burst_fits(burst, fs=fs)
@@ -143,6 +153,7 @@ def range_echo(
         model=model,
         q0=q0,
         pool=pool,
+        transducer_family=transducer_family,
     )
     # Paths found at the very edges of the search are the blanking's or timeout's edge.
     out = []

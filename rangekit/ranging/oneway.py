@@ -70,6 +70,7 @@ def range_oneway(
     probe: Probe | None = None,
     fit_transducers: bool = True,
     pool: bool = True,
+    transducer_family: str = "resonator",
 ) -> list[ToF]:
     """One-way (RF-synchronised) ranges from a recording whose sample 0 is the trigger.
 
@@ -128,13 +129,27 @@ def range_oneway(
         receiver and transmitter (``tx_ids``; all windows of the receiver without them)
         when they agree, which brings each range's sigma down to the known-transducer
         bound (default True).
+    transducer_family : {"resonator", "unknown"}
+        With ``fit_transducers``: what is known of the transducers' family before
+        measuring. ``"resonator"`` (default): the resonant piezo of Kim & Kim 2013,
+        the model choice's sigma as Schwarz's criterion gives it; ``"unknown"``: a
+        transducer of any shape, the model choice's sigma from Akaike weights, so that a
+        non-resonator transducer's model error is covered (a resonator's sigma 2-3x
+        wider; :mod:`rangekit.detect.fitted`, docs/accuracy.md). Only sigma differs.
 
     Returns
     -------
     list of ToF
         One entry per (window, channel), sorted; ``distance_m`` NaN where nothing was found.
     """
+    from rangekit.detect.fitted import check_transducer_family
+
     fs = V.sample_rate(fs)
+    transducer_family = check_transducer_family(transducer_family)
+    if transducer_family != "resonator" and not fit_transducers:
+        raise InvalidParameterError(
+            f"{transducer_family=} applies to the transducer fit only (fit_transducers=True)"
+        )
     burst = CodedBurst() if burst is None else burst
     if probe is None:
         check_burst_fits(burst, fs=fs)
@@ -175,6 +190,7 @@ def range_oneway(
         model=model,
         q0=q0,
         pool=pool,
+        transducer_family=transducer_family,
     )
 
 

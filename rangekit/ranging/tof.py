@@ -152,13 +152,15 @@ def _ranges(
     model=None,
     q0: float = 4.0,
     pool: bool = True,
+    transducer_family: str = "resonator",
 ) -> list[ToF]:
     """Shared core: per channel, per window first paths -> distances ``scale*c*(t - off)``.
 
     Window ``w`` of ``windows`` is numbered ``first_window + w`` (its transmitter too).
     With ``model`` the arrivals are timed by the transducer fit, whose ``(Q, f0)``
     estimates are pooled per channel and transmitter (``tx_ids``; all windows of a channel
-    when None).
+    when None), its model-choice variance by ``transducer_family``
+    (:func:`rangekit.detect.fitted.fit_channel`).
     """
     lo = max(0, int(math.floor(lo_s * fs)) - 1)
     hi = int(math.ceil(hi_s * fs)) + 2
@@ -201,6 +203,7 @@ def _ranges(
                 q0=q0,
                 groups=groups,
                 pool=pool,
+                transducer_family=transducer_family,
                 **thresholds,
             )
             for ch in range(x.shape[0])
@@ -216,7 +219,7 @@ def _ranges(
             fit_channel(
                 x[ch], fs=fs, template=template, models=model, windows=windows,
                 search=(lo, hi), block=block, q0=q0, groups=groups, pool=pool,
-                force=forces[ch], **thresholds,
+                force=forces[ch], transducer_family=transducer_family, **thresholds,
             )
             if forces[ch]
             else f

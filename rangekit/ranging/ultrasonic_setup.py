@@ -99,6 +99,7 @@ def ultrasonic_setup(
     carrier_hz: float | None = None,
     cycles_per_bit: int | None = None,
     q: float | str | None = None,
+    transducer_family: str | None = None,
     latency_s: float | None = None,
     period_s: float | None = None,
     tx_ids: Sequence[int] | None = None,
@@ -121,6 +122,11 @@ def ultrasonic_setup(
         (from the default transducer); a Q in [0.5, 100] = known, folded into the
         template (not fitted); 0 = the bare drive (no transducer model: its delay stays
         in the ranges); None = the setup's default (fitted).
+    transducer_family : {"resonator", "unknown"} or None
+        With the fit, what is known of the transducers' family: ``"resonator"`` the
+        resonant piezo of the papers, ``"unknown"`` any shape (a wider sigma that covers
+        a non-resonator's model error; :func:`~rangekit.ranging.oneway.range_oneway`);
+        None = the setup's default (``"resonator"``).
     latency_s, tx_ids
         One-way only: system latency (s) and each window's transmitter id; given with
         ``scheme="echo"`` they are an error.
@@ -145,6 +151,8 @@ def ultrasonic_setup(
         "max_range_m": max_range_m,
         "channels": channels,
     }
+    if transducer_family is not None:
+        given["transducer_family"] = transducer_family
     cfg.update({k: v for k, v in given.items() if v is not None})
     if kind is EchoSetup:
         for name, v in (("latency_s", latency_s), ("tx_ids", tx_ids)):
