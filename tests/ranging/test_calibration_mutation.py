@@ -361,3 +361,49 @@ def test_measurements_and_calibrations_are_frozen_and_short_to_print():
     with pytest.raises(dataclasses.FrozenInstanceError):
         cal.offset_m = 0.0
     assert cal.residuals and "residuals" not in repr(cal)  # one entry per recording: not shown
+
+
+#: The accepted ranges of a calibration file's values, as docs/formats.md ("Calibration
+#: file") states them: written here, not read from the module, so a changed bound fails.
+FILE_LIMITS = {
+    "speed_m_s": (200.0, 2000.0),
+    "offset_m": (-100.0, 100.0),
+    "sigma_offset_m": (0.0, 100.0),
+    "latency_s": (-10.0, 10.0),
+    "sigma_latency_s": (0.0, 10.0),
+    "sigma_speed_m_s": (0.0, 1000.0),
+}
+
+
+def _limit_cases():
+    """Every documented bound: the bound itself accepted, a step past it refused (1 % of
+    the range's width, so a bound moved either way is caught)."""
+    for field, (lo, hi) in FILE_LIMITS.items():
+        step = 0.01 * (hi - lo)
+        yield field, lo, True
+        yield field, hi, True
+        yield field, lo - step, False
+        yield field, hi + step, False
+
+
+@pytest.mark.parametrize(("field", "value", "ok"), list(_limit_cases()))
+def test_every_file_limit_holds_at_both_of_its_bounds(tmp_path, field, value, ok):
+    doc = _cal().to_dict()
+    doc[field] = value
+    doc["cov_speed_offset"] = 0.0  # within any product of the sigmas, zero included
+    p = tmp_path / "cal.json"
+    p.write_text(json.dumps(doc))
+    if ok:
+        assert getattr(read_calibration(p), field) == value
+    else:
+        with pytest.raises(InputFileError, match=f"not a valid rangekit calibration: {field}"):
+            read_calibration(p)
+
+
+def test_a_flat_time_line_has_no_positive_speed():
+    # every recording at time 0 whatever its distance: the fitted slope 1/c is exactly 0
+    # (a zero right-hand side), no speed at all; refused as "not positive", never divided
+    # by (a time 0.01 s gives a slope of -1e-18, which the rule refuses either way)
+    flat = [_m(d, 0.0, 1e-6, f"r{i}") for i, d in enumerate([0.5, 1.0, 2.0, 2.5])]
+    with pytest.raises(CalibrationError, match="not positive"):
+        fit_calibration(flat, scheme="beepbeep", speed_m_s=C0, outlier_sigma=1e9)
