@@ -86,6 +86,7 @@ TESTS: dict[str, tuple[str, ...]] = {
         "tests/detect/test_edge_kernels.py",
         "tests/detect/test_combine_drift.py",
         "tests/detect/test_changepoint_mutation3.py",
+        "tests/detect/test_changepoint_mutation4.py",
     ),
     "rangekit/detect/_kernels.py": ("tests/detect/test_kernels.py",),
     "rangekit/detect/condition.py": ("tests/detect/test_condition.py",),
@@ -131,6 +132,14 @@ TESTS: dict[str, tuple[str, ...]] = {
         "tests/detect/test_fitted_mutation.py",
     ),
     "rangekit/detect/_pathfit_kernels.py": ("tests/detect/test_pathfit_kernels.py",),
+    "rangekit/detect/template.py": (
+        "tests/detect/test_template.py",
+        "tests/detect/test_template_coherent.py",
+        "tests/detect/test_template_weighting.py",
+        "tests/detect/test_template_transducer.py",
+        "tests/detect/test_template_ultrasonic.py",
+        "tests/detect/test_template_wrong.py",
+    ),
     "rangekit/detect/_edge_kernels.py": (
         "tests/detect/test_edge_kernels.py",
         "tests/detect/test_combine_drift.py",
