@@ -109,3 +109,18 @@ def test_an_echo_beyond_the_maximum_range_masks_none_within_it():
     assert r.distance_m == pytest.approx(5.0, abs=1e-3)
     (r,) = range_echo(x, fs=FS, speed_m_s=C, fit_transducer=False, max_range_m=9.0)
     assert r.distance_m == pytest.approx(8.0, abs=1e-3)
+
+
+def test_the_srf02_figures_are_the_sensor_models():
+    # one datasheet (Girard 2011 sec. 2.6): the echo scheme's exported SRF02 figures are
+    # those of the sensor model the simulators render, and one cycle holds the round
+    # trip to the maximum range
+    from rangekit.ranging import echo
+    from rangekit.sensors import srf02
+
+    assert (echo.SRF02_CYCLE_S, echo.SRF02_MIN_RANGE_M, echo.SRF02_MAX_RANGE_M) == (
+        srf02.CYCLE_S,
+        srf02.MIN_RANGE_M,
+        srf02.MAX_RANGE_M,
+    )
+    assert 2 * echo.SRF02_MAX_RANGE_M / srf02.DATASHEET_SPEED_M_S < echo.SRF02_CYCLE_S

@@ -246,7 +246,10 @@ def test_series_items_are_frozen():
 
 def test_read_block_integer_pcm_exact_in_float32(tmp_path):
     x = np.random.default_rng(9).uniform(-0.9, 0.9, (1000, 2))
-    for sub, dtype in (("PCM_16", np.float32), ("PCM_24", np.float32), ("FLOAT", np.float64)):
+    # PCM_16/24 are scaled by numpy, U8 and mu-law decoded by libsndfile into float32:
+    # both integer routes, and the checked float64 route of a float file
+    subtypes = ("PCM_16", "PCM_24", "PCM_U8", "ULAW")
+    for sub, dtype in [(s, np.float32) for s in subtypes] + [("FLOAT", np.float64)]:
         p = tmp_path / f"{sub}.wav"
         sf.write(p, x, FS, sub)
         ref, _ = sf.read(p, dtype="float64")
