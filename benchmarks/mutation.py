@@ -389,6 +389,13 @@ EQUIVALENT: dict[str, dict[tuple, str]] = {
         ("if stop <= start:", "<= -> <"): "reading 0 frames gives the same empty block",
         ("ok = (starts < n_samples) & ((stops - starts) >= 0.5 * per)", "< -> <="):
             "a window starting at the end has length 0 and fails the half-period test",
+        ("jobs: int = 1,", "1 -> 2"):
+            "the series is the same for any jobs (test_parallel_jobs_give_the_same_series); "
+            "only the worker count differs",
+    },
+    "rangekit/ranging/calibration.py": {
+        ("if abs(cal.cov_speed_offset) > bound * (1 + 1e-9) + 1e-300:", "> -> >="):
+            "a float tie: a covariance exactly at the allowance above the sigmas' product",
     },
     "rangekit/ranging/config.py": {
         ('if hasattr(sd, "tolist") and getattr(sd, "ndim", 0) > 0:  # a numpy array',
