@@ -143,6 +143,7 @@ TESTS: dict[str, tuple[str, ...]] = {
     "rangekit/detect/_edge_kernels.py": (
         "tests/detect/test_edge_kernels.py",
         "tests/detect/test_combine_drift.py",
+        "tests/detect/test_edge_kernels_mutation.py",
     ),
     "rangekit/detect/__init__.py": ("tests/detect/test_front.py",),
     "rangekit/detect/files.py": (
