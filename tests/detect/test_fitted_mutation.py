@@ -654,3 +654,24 @@ def test_detect_coded_is_the_fit_with_its_own_order_term(models):
                      models=ms, windows=win, q0=q0)  # fmt: skip
     want = with_order_terms(cf, order_terms([cf])[0])
     assert np.array_equal(got.onset, want.onset) and np.array_equal(got.sigma, want.sigma)
+
+
+@pytest.mark.parametrize("n_win", [1, 2])
+@pytest.mark.parametrize(
+    ("t", "family"), [(Transducer(q=8.0), "resonator"), (BandpassTransducer(q=4.0), "stagger")]
+)
+def test_a_group_of_fewer_than_n_test_arrivals_is_still_decided_and_timed(models, n_win, t, family):
+    """A group whose arrivals end before ``N_TEST`` comparisons is decided after the
+    windows (``g.family is None``: from the tests it has), and every arrival is timed by
+    that family's fit: a resonator's, or a band-pass pair's by the stagger model."""
+    assert n_win < F.N_TEST
+    tpl = coded_template(fs=FS)
+    x, win = _channel(t, 4)
+    short = fit_channel(x[: n_win * N_WIN], fs=FS, template=tpl, models=models,
+                        windows=win[:n_win])  # fmt: skip
+    assert list(short.family) == [family] * n_win
+    # each onset at the drive's start, 3000 samples into its window (measured within
+    # 0.058 samples; sigma 0.061-0.161)
+    truth = 3000.0 + N_WIN * np.arange(n_win)
+    assert np.all(np.abs(short.arrivals.onset - truth) < 0.12)
+    assert np.all((short.arrivals.sigma > 0.03) & (short.arrivals.sigma < 0.32))
