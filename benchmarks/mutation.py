@@ -333,6 +333,9 @@ EQUIVALENT: dict[str, dict[tuple, str]] = {
          "3 -> 4"): "a sample no tap reads: [p - 1, p + 1] reads up to p + 17 < p + 19",
     },
     "rangekit/detect/pathfit.py": {
+        ("return _POCKET.r2c(buf, (0,), True, 0, None, 1)", "1 -> 2"):
+            "pocketfft's thread count: one 1-d transform is done by one thread either way, "
+            "bit-identical",
         ("if a.ndim and axis in (-1, a.ndim - 1) and a.shape[-1] <= n and _POCKET is not None:",
          "-x -> x", 0): "scipy.fft.ifft instead: the same pocketfft call, bit-identical",
         ("if a.ndim and axis in (-1, a.ndim - 1) and a.shape[-1] <= n and _POCKET is not None:",
@@ -389,6 +392,11 @@ EQUIVALENT: dict[str, dict[tuple, str]] = {
             "a branch for another scipy layout (_POCKET None), never taken with this scipy",
         ("dof = max(1, len(st.r) - n_par)", "1 -> 2"):
             "the one caller passes n_par = 3 + n_theta; st.r is a segment, at least a drive long",
+    },
+    "rangekit/detect/_pathfit_kernels.py": {
+        ("e1 = np.empty(0)", "0 -> 1"):
+            "returned only with ok False, on which the caller runs the numpy reference and "
+            "reads none of the arrays",
     },
     "rangekit/detect/stagger.py": {
         ("if len(self._cache) > 64:", "64 -> 65"): "a cache's size: the same spectra",
