@@ -393,6 +393,12 @@ EQUIVALENT: dict[str, dict[tuple, str]] = {
         ("dof = max(1, len(st.r) - n_par)", "1 -> 2"):
             "the one caller passes n_par = 3 + n_theta; st.r is a segment, at least a drive long",
     },
+    "rangekit/detect/refine.py": {
+        ("q_base = np.linalg.qr(cols[:, 2:])[0] if cols.shape[1] > 2 else np.zeros((len(k), 0))",
+         "0 -> 1"):
+            "without nuisance columns a zero column: numpy reads no base then, the compiled "
+            "statistic adds its zero row's 0 to the base energy",
+    },
     "rangekit/detect/_pathfit_kernels.py": {
         ("e1 = np.empty(0)", "0 -> 1"):
             "returned only with ok False, on which the caller runs the numpy reference and "
