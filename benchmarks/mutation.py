@@ -395,7 +395,7 @@ EQUIVALENT: dict[str, dict[tuple, str]] = {
     },
     "rangekit/detect/refine.py": {
         ("q_base = np.linalg.qr(cols[:, 2:])[0] if cols.shape[1] > 2 else np.zeros((len(k), 0))",
-         "0 -> 1"):
+         "0 -> 1", 1):
             "without nuisance columns a zero column: numpy reads no base then, the compiled "
             "statistic adds its zero row's 0 to the base energy",
     },
