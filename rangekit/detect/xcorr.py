@@ -113,7 +113,14 @@ def detect_xcorr(
         work[max(0, i - excl) : i + excl + 1] = 0.0
     peaks.sort()
     onset, sigma, snr = [], [], []
-    tmpl_energy = k_b * float(np.sum(np.abs(one) ** 2))
+    # SNR as Arrivals documents it, a burst's power over the full-band noise power: x = A
+    # Re(one) correlates to A E1 / 2 per burst (E1 the burst template's energy), white
+    # noise of variance s2 to a complex Gaussian of E|z|^2 = s2 E1, whose magnitude
+    # (Rayleigh) has its median at sqrt(ln 4 E|z|^2 / 2); so A^2 / 2 / s2 = 2 m^2 /
+    # (E1 E|z|^2) with m the burst's peak magnitude (env / k_b; the bursts are summed)
+    # and E|z|^2 = 2 median(e1)^2 / ln 4 (one burst's correlation: the beeps are sparse).
+    e_one = float(np.sum(np.abs(one) ** 2))
+    z2 = 2.0 * float(np.median(e1)) ** 2 / math.log(4.0)
     for i in peaks:
         if 0 < i < len(env) - 1:
             y0, y1, y2 = env[i - 1], env[i], env[i + 1]
@@ -126,9 +133,8 @@ def detect_xcorr(
         # Output SNR of the matched filter; timing variance of a parabola fit ~ 1/(SNR*curv).
         snr_out = (env[i] / max(noise, 1e-300)) ** 2
         sigma.append(1.0 / math.sqrt(max(snr_out * curv, 1e-12)))
-        amp = env[i] / tmpl_energy
-        noise_var = (noise / math.sqrt(math.log(4.0))) ** 2 / tmpl_energy
-        snr.append(10 * math.log10(max(0.5 * amp**2 / max(noise_var, 1e-300) / 2, 1e-30)))
+        m = env[i] / k_b
+        snr.append(10 * math.log10(max(2.0 * m * m / max(e_one * z2, 1e-300), 1e-30)))
     onset = np.array(onset)
     bursts = onset[:, None] + np.arange(k_b)[None, :] * beep.spacing_s * fs
     conf = _burst_confidence(x, bursts, fs=fs, beep=beep)
