@@ -139,6 +139,7 @@ TESTS: dict[str, tuple[str, ...]] = {
         "tests/detect/test_template_transducer.py",
         "tests/detect/test_template_ultrasonic.py",
         "tests/detect/test_template_wrong.py",
+        "tests/detect/test_template_mutation.py",
     ),
     "rangekit/detect/_edge_kernels.py": (
         "tests/detect/test_edge_kernels.py",
