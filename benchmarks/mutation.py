@@ -400,6 +400,34 @@ EQUIVALENT: dict[str, dict[tuple, str]] = {
             "without nuisance columns a zero column: numpy reads no base then, the compiled "
             "statistic adds its zero row's 0 to the base energy",
     },
+    "rangekit/detect/template.py": {
+        ("a = np.array([r[:5] for r in rows], dtype=np.float64)", "5 -> 6"):
+            "a sixth column (the flag bits, as floats) that is never read: only a[:, :5] are",
+        ("q < p and env[p] < TAIL_MARGIN * _tail_level(decay, p) for q, decay in decays",
+         "< -> <=", 0): "q is an accepted peak, p a candidate not within sep >= 1 of any: q != p",
+        ("if not paths or m < 2 or j < 1 or j + 1 >= len(c):", "< -> <=", 0):
+            "m = lookback + 256 lags >= 256 (_weighted): m < 2 and m <= 2 are both false",
+        ("return 1.0", "1.0 -> 2.0"):
+            "_coverage's undecided value: its one caller only compares it with "
+            "POOR_MATCH_COVERAGE (0.5), which 1 and 2 both clear",
+        ("return float(strong.sum()) > LOWBAND_POWER_RATIO * float(N[inb].sum())", "> -> >="):
+            "a tie of two float power sums (the band's positive), never met",
+        ("shares = shares / max(float(shares.sum()), 1e-300)", "1e-300 -> 2e-300"):
+            "the template's weighted PSD over its own band sums far above 1e-300: never the max",
+        # Seed 1 (judged after the draw):
+        ("if w < 1.0:", "< -> <="):
+            "at w = 1 the envelope's share (1 - w) sqrt(eps) / (2 pi beta) adds exactly 0",
+        ("s1 = min(max(j + len(base.template), 0), len(x))", "0 -> 1"):
+            "a timed first path lies at most a few samples before sample 0 and the template "
+            "is far longer: j + len(template) > 1, never clipped",
+        ("pk = np.flatnonzero((seg >= env[a - 1 : b - 1]) & (seg > env[a + 1 : b + 1]))",
+         "> -> >="): "a tie of two neighbouring envelope values (floats >= thr / 1.5), never met",
+        ("a = np.where(tested, r / np.maximum(sh, 1e-300), 0.0)", "1e-300 -> 2e-300"):
+            "tested sub-bands have sh >= 1 / 32; elsewhere np.where drops the quotient",
+        ("@dataclass(frozen=True, eq=False)", "True -> False"):
+            "the private _Base and _Filter are never assigned to (_Base's spectrum cache "
+            "goes through object.__setattr__)",
+    },
     "rangekit/detect/_pathfit_kernels.py": {
         ("e1 = np.empty(0)", "0 -> 1"):
             "returned only with ok False, on which the caller runs the numpy reference and "
