@@ -407,6 +407,10 @@ EQUIVALENT: dict[str, dict[tuple, str]] = {
          "< -> <=", 0): "q is an accepted peak, p a candidate not within sep >= 1 of any: q != p",
         ("if not paths or m < 2 or j < 1 or j + 1 >= len(c):", "< -> <=", 0):
             "m = lookback + 256 lags >= 256 (_weighted): m < 2 and m <= 2 are both false",
+        ("if not paths or m < 2 or j < 1 or j + 1 >= len(c):", "2 -> 3"):
+            "m = lookback + 256 lags >= 256 (_weighted): m < 2 and m < 3 are both false",
+        ("@functools.lru_cache(maxsize=8)", "8 -> 9"):
+            "the cache's size: the same _Base for a probe and rate, cached or rebuilt",
         ("return 1.0", "1.0 -> 2.0"):
             "_coverage's undecided value: its one caller only compares it with "
             "POOR_MATCH_COVERAGE (0.5), which 1 and 2 both clear",
