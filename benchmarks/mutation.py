@@ -411,6 +411,12 @@ EQUIVALENT: dict[str, dict[tuple, str]] = {
             "m = lookback + 256 lags >= 256 (_weighted): m < 2 and m < 3 are both false",
         ("@functools.lru_cache(maxsize=8)", "8 -> 9"):
             "the cache's size: the same _Base for a probe and rate, cached or rebuilt",
+        ("while mid + k < len(env) and env[mid + k] > 0.25 * top:", "+ -> -", 0):
+            "the self response's envelope falls below a quarter within its main lobe, long "
+            "before the end: the bound is never what stops the loop",
+        ("while mid + k < len(env) and env[mid + k] > 0.25 * top:", "+ -> -", 1):
+            "the self response (an autocorrelation) is symmetric about mid: env[mid - k] "
+            "equals env[mid + k]",
         ("return 1.0", "1.0 -> 2.0"):
             "_coverage's undecided value: its one caller only compares it with "
             "POOR_MATCH_COVERAGE (0.5), which 1 and 2 both clear",
