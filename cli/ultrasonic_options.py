@@ -137,7 +137,7 @@ def ultrasonic_options(f):
                     "oneway/echo, with --transducer-q auto: what is known of the "
                     "transducers' family. resonator = the resonant piezo of the papers; "
                     "unknown = any shape (a coupled or band-pass element): sigma from "
-                    "Akaike weights, so its model error is covered, 2-3x wider for a "
+                    "Akaike weights, so its model error is covered; 1.7-4.5x wider for a "
                     f"resonator {_both(ow.transducer_family, ec.transducer_family)}."
                 )
             ),

@@ -134,7 +134,7 @@ def range_oneway(
         measuring. ``"resonator"`` (default): the resonant piezo of Kim & Kim 2013,
         the model choice's sigma as Schwarz's criterion gives it; ``"unknown"``: a
         transducer of any shape, the model choice's sigma from Akaike weights, so that a
-        non-resonator transducer's model error is covered (a resonator's sigma 2-3x
+        non-resonator transducer's model error is covered (a resonator's sigma 1.7-4.5x
         wider; :mod:`rangekit.detect.fitted`, docs/accuracy.md). Only sigma differs.
 
     Returns
