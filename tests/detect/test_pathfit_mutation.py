@@ -100,3 +100,35 @@ def test_a_path_in_the_first_quarter_of_pre_s_is_read_again(late_s, read_again):
         assert late.n0 == int(t0 + late_s * FS) - model.pre
         assert late.onset - late.n0 > 0.25 * model.pre
     assert late.onset == pytest.approx(right.onset, abs=1e-3)
+
+
+class _Fit:
+    """What :func:`pool_fits` reads of a PathFit: ``theta_hat``, ``info`` and ``at``."""
+
+    def __init__(self, theta, info):
+        self.theta_hat, self.info = np.asarray(theta, float), np.asarray(info, float)
+
+    def at(self, mean, cov):
+        return ("at", tuple(np.round(mean, 12)))
+
+
+@pytest.mark.parametrize(("scale", "pooled"), [(3.0, False), (1.5, True), (2.4, True)])
+def test_pooling_stops_beyond_max_chi2_per_degree_of_freedom(scale, pooled):
+    """``pool_fits``' rule: the kept fits' spread ``sum d2`` over ``p (n - 1)`` degrees
+    of freedom above ``max_chi2`` (4) means they did not go through one pair of
+    transducers: unchanged. Four unit-information fits on a cross of radius ``scale``
+    about 0: each d2 = scale^2 (kept: <= 8 p = 16), sum 4 scale^2 over dof 6, i.e. 6.0,
+    1.5 and 3.84 per degree of freedom."""
+    from rangekit.detect.pathfit import pool_fits
+
+    pts = [(scale, 0.0), (-scale, 0.0), (0.0, scale), (0.0, -scale)]
+    fits = [_Fit(t, np.eye(2)) for t in pts]
+    out, ok = pool_fits(fits)
+    assert ok is pooled
+    if pooled:
+        assert out == [("at", (0.0, 0.0))] * 4
+    else:
+        assert out == fits
+    # the limit is the argument: 6.0 per degree of freedom pools under max_chi2 = 6.5
+    assert pool_fits([_Fit(t, np.eye(2)) for t in [(3.0, 0), (-3.0, 0), (0, 3.0), (0, -3.0)]],
+                     max_chi2=6.5)[1]  # fmt: skip
