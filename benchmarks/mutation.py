@@ -220,6 +220,8 @@ EQUIVALENT: dict[str, dict[tuple, str]] = {
          "1000000.0 -> 2000000.0", 2):
             "the clip's upper 1e6: nan_to_num caps failed fits at 1e6 already; only a finite "
             "sigma above 1e6 differs, weighing 1e-12 or less either way",
+        ("n_rows = np.zeros(1, dtype=np.int64)", "1 -> 2"):
+            "a one-element counter: the kernel and the loop read and write n_rows[0] only",
         # Seeds 9 and 10 (judged after the draws, docs/evidence.md seventh round):
         ("if len(others[i]) and float(np.min(np.abs(others[i] - place))) <= tol:", "<= -> <"):
             "a tie of a float distance (fitted onsets, a place at the nominal spacing) with "
@@ -237,6 +239,8 @@ EQUIVALENT: dict[str, dict[tuple, str]] = {
             ">= n_last (8), so last - n_last + 1 >= 60",
     },
     "rangekit/detect/condition.py": {
+        ("top = float(np.max(e)) if n else 0.0", "0.0 -> 1.0"):
+            "n > block >= 1 here (n <= block returned just before): the else is never taken",
         ("low_pass_only = False", "False -> True"): "only `width` reads it, `tw` either way",
         ("low_pass_only = lo - tw <= 0.0", "<= -> <"):
             "at lo == tw the branch sets tw = lo, the value it had",
