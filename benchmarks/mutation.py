@@ -413,6 +413,9 @@ EQUIVALENT: dict[str, dict[tuple, str]] = {
             "m = lookback + 256 lags >= 256 (_weighted): m < 2 and m <= 2 are both false",
         ("if not paths or m < 2 or j < 1 or j + 1 >= len(c):", "2 -> 3"):
             "m = lookback + 256 lags >= 256 (_weighted): m < 2 and m < 3 are both false",
+        ("if spectra is not None and _coverage(xc, j, base, wf, spectra) < POOR_MATCH_COVERAGE:",
+         "< -> <="):
+            "a tie of the share-weighted coverage (a ratio of sums of float shares) with 0.5",
         ("@functools.lru_cache(maxsize=8)", "8 -> 9"):
             "the cache's size: the same _Base for a probe and rate, cached or rebuilt",
         ("while mid + k < len(env) and env[mid + k] > 0.25 * top:", "+ -> -", 0):
