@@ -678,6 +678,28 @@ def _near_miss(c: np.ndarray, env: np.ndarray, lo: int, paths, wf: _Filter, thr:
     return bool(np.any(np.abs(res) >= thr / AMBIGUOUS_MARGIN))
 
 
+def _lobe_fit(c: np.ndarray, j: int, d: float, wf: _Filter, half: int):
+    """The window ``c[j - half : j + half + 1]`` beside the weighted self response shifted
+    by ``d`` over the same lags, and the main lobe's (``j +- half_lobe``) energies and
+    cross term: ``(R, seg, rr, ss, <r, s>)``, the least-squares ``alpha = <r, s> / rr``
+    of :func:`_shape` and :func:`_odd_eps`. None when the window leaves ``c`` or the self
+    response, or either lobe holds no energy."""
+    K = wf.half_lobe
+    m = len(wf.self_resp) // 2
+    lo, hi = j - half, j + half + 1
+    if lo < 0 or hi > len(c) or m < half + 1:
+        return None
+    R = _shifted(wf.self_resp, d)[m - half : m + half + 1]
+    seg = c[lo:hi]
+    core = slice(half - K, half + K + 1)
+    r, s = R[core], seg[core]
+    rr = float(np.vdot(r, r).real)
+    ss = float(np.vdot(s, s).real)
+    if rr <= 0 or ss <= 0:
+        return None
+    return R, seg, rr, ss, np.vdot(r, s)
+
+
 def _shape(c: np.ndarray, j: int, d: float, wf: _Filter, floor: float) -> tuple[float, bool]:
     """Unexplained energy fraction of the main lobe at ``j + d``, and a close rival path.
 
@@ -690,20 +712,12 @@ def _shape(c: np.ndarray, j: int, d: float, wf: _Filter, floor: float) -> tuple[
     """
     K = wf.half_lobe
     K2 = 2 * K
-    m = len(wf.self_resp) // 2
-    lo, hi = j - K2, j + K2 + 1
-    if lo < 0 or hi > len(c) or m < K2 + 1:
+    fit = _lobe_fit(c, j, d, wf, K2)
+    if fit is None:
         return 0.0, False
-    R = _shifted(wf.self_resp, d)[m - K2 : m + K2 + 1]
-    seg = c[lo:hi]
-    core = slice(K, K + 2 * K + 1)
-    r, s = R[core], seg[core]
-    rr = float(np.vdot(r, r).real)
-    ss = float(np.vdot(s, s).real)
-    if rr <= 0 or ss <= 0:
-        return 0.0, False
-    alpha = np.vdot(r, s) / rr
-    rho2 = abs(np.vdot(r, s)) ** 2 / (rr * ss)
+    R, seg, rr, ss, rs = fit
+    alpha = rs / rr
+    rho2 = abs(rs) ** 2 / (rr * ss)
     noise_share = (2 * K + 1) * 2.0 * floor**2 / ss
     eps = max(0.0, 1.0 - rho2 - noise_share)
     res = np.abs(seg - alpha * R)
@@ -729,21 +743,14 @@ def _odd_eps(c: np.ndarray, j: int, d: float, wf: _Filter, floor: float) -> floa
     0 when the window does not fit.
     """
     K = wf.half_lobe
-    m = len(wf.self_resp) // 2
     pad = SINC_HALF + 2  # the reflection's interpolation reaches this far beyond the lobe
     h = K + pad
-    lo, hi = j - h, j + h + 1
-    if lo < 0 or hi > len(c) or m < h + 1:
+    fit = _lobe_fit(c, j, d, wf, h)
+    if fit is None:
         return 0.0
-    R = _shifted(wf.self_resp, d)[m - h : m + h + 1]
-    seg = c[lo:hi]
+    R, seg, rr, ss, rs = fit
     core = slice(pad, pad + 2 * K + 1)
-    r, s = R[core], seg[core]
-    rr = float(np.vdot(r, r).real)
-    ss = float(np.vdot(s, s).real)
-    if rr <= 0 or ss <= 0:
-        return 0.0
-    alpha = np.vdot(r, s) / rr
+    alpha = rs / rr
     e = seg - alpha * R
     e_re, e_im = np.ascontiguousarray(e.real), np.ascontiguousarray(e.imag)
     p = alpha / np.conj(alpha) if abs(alpha) > 0 else 1.0
