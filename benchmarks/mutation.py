@@ -752,19 +752,24 @@ def survivors(path: pathlib.Path, module: str) -> tuple[list[Site], int]:
     return sorted(set(found), key=lambda s: (s.line, s.col, s.what)), stale
 
 
+def _sites_of(path: str) -> list[Site]:
+    """The mutation sites of the repository file ``path``."""
+    return sites((ROOT / path).read_text(encoding="utf-8"))
+
+
 def package_modules(folder: str) -> tuple[list[str], list[str]]:
     """The modules of :data:`TESTS` under ``folder`` and the ``.py`` files there without
     an entry (outside any score), each list sorted."""
     base = folder.rstrip("/") + "/"
     mapped = sorted(m for m in TESTS if m.startswith(base))
     files = sorted(str(f.relative_to(ROOT)) for f in (ROOT / folder).rglob("*.py"))
-    return mapped, [f for f in files if f not in TESTS and sites((ROOT / f).read_text("utf-8"))]
+    return mapped, [f for f in files if f not in TESTS and _sites_of(f)]
 
 
 def pooled_sample(modules: list[str], n: int, seed: int) -> dict[str, list[Site]]:
     """``n`` sites drawn (seeded, without replacement) from the union of ``modules``'
     sites, grouped by module: a module's expected share is its share of the sites."""
-    union = [(m, s) for m in modules for s in sites((ROOT / m).read_text(encoding="utf-8"))]
+    union = [(m, s) for m in modules for s in _sites_of(m)]
     rng = np.random.default_rng(seed)
     pick = sorted(rng.choice(len(union), size=min(n, len(union)), replace=False))
     out: dict[str, list[Site]] = {}
@@ -787,7 +792,7 @@ def pooled_summary(folder: str, results: list[dict], n_sites: int, seed: int,
           "listed equivalent")  # fmt: skip
     for r in results:
         print(f"  {r['module']}: {r['killed']}/{r['valid']} of {r['sites']} sites")
-    off = {f: len(sites((ROOT / f).read_text(encoding="utf-8"))) for f in unmapped}
+    off = {f: len(_sites_of(f)) for f in unmapped}
     if off:
         print("  outside the score (no TESTS entry): "
               + ", ".join(f"{f} ({k} sites)" for f, k in off.items()))  # fmt: skip
@@ -837,15 +842,15 @@ def main() -> int:
         mapped, unmapped = package_modules(folder)
         if not mapped:
             ap.error(f"{folder!r} has no module with a test mapping")
-        n_sites = sum(len(sites((ROOT / m).read_text(encoding="utf-8"))) for m in mapped)
+        counts = {m: len(_sites_of(m)) for m in mapped}
         results = []
         for m, picked in pooled_sample(mapped, args.pooled, args.seed).items():
             out = check_module(
                 m, n=0, seed=args.seed, timeout_s=args.timeout, only=picked,
                 label=f"of a pooled sample (seed {args.seed})",
             )  # fmt: skip
-            results.append(summary(m, out, len(sites((ROOT / m).read_text("utf-8"))), args.seed))
-        pooled = pooled_summary(folder, results, n_sites, args.seed, unmapped)
+            results.append(summary(m, out, counts[m], args.seed))
+        pooled = pooled_summary(folder, results, sum(counts.values()), args.seed, unmapped)
         if args.json:
             args.json.write_text(json.dumps([*results, pooled], indent=1) + "\n", "utf-8")
         return 0
