@@ -205,8 +205,12 @@ def _stagger_start(fit_r: PathFit, res_model, stag_model):
 TRANSDUCER_FAMILIES = ("resonator", "unknown")
 
 
-def check_transducer_family(transducer_family: str) -> str:
-    """``transducer_family`` if it is one of :data:`TRANSDUCER_FAMILIES`.
+def check_transducer_family(
+    transducer_family: str, *, fit: bool = True, fit_name: str = "fit_transducers=True"
+) -> str:
+    """``transducer_family`` if it is one of :data:`TRANSDUCER_FAMILIES` and, when it is
+    not the default, the arrivals are timed by the transducer fit (``fit``; ``fit_name``
+    says how the caller's user asks for it, for the message).
 
     Examples
     --------
@@ -216,10 +220,18 @@ def check_transducer_family(transducer_family: str) -> str:
     Traceback (most recent call last):
     ...
     rangekit.errors.InvalidParameterError: transducer_family='piezo' must be one of ...
+    >>> check_transducer_family("unknown", fit=False)  # doctest: +ELLIPSIS
+    Traceback (most recent call last):
+    ...
+    rangekit.errors.InvalidParameterError: transducer_family='unknown' applies to the ...
     """
     if not isinstance(transducer_family, str) or transducer_family not in TRANSDUCER_FAMILIES:
         raise InvalidParameterError(
             f"{transducer_family=} must be one of {', '.join(TRANSDUCER_FAMILIES)}"
+        )
+    if transducer_family != "resonator" and not fit:
+        raise InvalidParameterError(
+            f"{transducer_family=} applies to the transducer fit only ({fit_name})"
         )
     return transducer_family
 

@@ -237,13 +237,12 @@ def _check_common(cfg) -> None:
     if cfg.transducer_family != "resonator":  # the default imports no fit
         from rangekit.detect.fitted import check_transducer_family
 
-        check_transducer_family(cfg.transducer_family)
         fit = getattr(cfg, "fit_transducers", getattr(cfg, "fit_transducer", True))
-        if not fit or cfg.transducer is None:
-            raise V.InvalidParameterError(
-                f"transducer_family={cfg.transducer_family!r} applies to the transducer "
-                "fit only (a fitted transducer: Q auto)"
-            )
+        check_transducer_family(
+            cfg.transducer_family,
+            fit=fit and cfg.transducer is not None,
+            fit_name="a fitted transducer: Q auto",
+        )
 
 
 def _family_kwargs(cfg) -> dict[str, Any]:

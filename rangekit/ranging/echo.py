@@ -99,11 +99,9 @@ def range_echo(
     from rangekit.detect.fitted import check_transducer_family
 
     fs = V.sample_rate(fs)
-    transducer_family = check_transducer_family(transducer_family)
-    if transducer_family != "resonator" and not fit_transducer:
-        raise InvalidParameterError(
-            f"{transducer_family=} applies to the transducer fit only (fit_transducer=True)"
-        )
+    transducer_family = check_transducer_family(
+        transducer_family, fit=fit_transducer, fit_name="fit_transducer=True"
+    )
     burst = srf02_ping() if burst is None else burst
     if probe is None:
         check_burst_fits(burst, fs=fs)

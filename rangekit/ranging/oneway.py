@@ -145,11 +145,7 @@ def range_oneway(
     from rangekit.detect.fitted import check_transducer_family
 
     fs = V.sample_rate(fs)
-    transducer_family = check_transducer_family(transducer_family)
-    if transducer_family != "resonator" and not fit_transducers:
-        raise InvalidParameterError(
-            f"{transducer_family=} applies to the transducer fit only (fit_transducers=True)"
-        )
+    transducer_family = check_transducer_family(transducer_family, fit=fit_transducers)
     burst = CodedBurst() if burst is None else burst
     if probe is None:
         check_burst_fits(burst, fs=fs)
