@@ -214,29 +214,14 @@ def _shift_rows_py(
     row ``1`` (``-j w = -j wc - j (w - wc)``) is ``-j wc`` row 0 ``- j exp(-j wc f) sum_q
     c_q D_{q+1}[t - i]``. ``tab`` holds ``nt + 1`` tables.
     """
-    k = u.shape[0]
-    acc0 = np.empty(n, dtype=np.complex128)
-    acc1 = np.empty(n, dtype=np.complex128)
-    for i in range(k):
-        sh = int(math.floor(u[i] + 0.5))
-        f = u[i] - sh
-        start = (-sh) % m
+    # Row 1's series is row 0's on the tables from D_1 on (tab[1:]): the one-row series
+    # twice, the second into rows[1], then row 1 = -j wc row 0 - j (that series).
+    _shift_row_py(tab[1:], nt, wc, m, u, n, rows[1])
+    _shift_row_py(tab, nt, wc, m, u, n, rows[0])
+    mjwc = -1j * wc
+    for i in range(u.shape[0]):
         for t in range(n):
-            acc0[t] = tab[0, start + t]
-            acc1[t] = tab[1, start + t]
-        c = 1.0 + 0.0j
-        mjf = -1j * f
-        for q in range(1, nt):
-            c = c * mjf / q
-            for t in range(n):
-                acc0[t] += c * tab[q, start + t]
-                acc1[t] += c * tab[q + 1, start + t]
-        e = complex(math.cos(wc * f), -math.sin(wc * f))
-        mjwc = -1j * wc
-        for t in range(n):
-            w = e * acc0[t]
-            rows[0, i, t] = w
-            rows[1, i, t] = mjwc * w - 1j * (e * acc1[t])
+            rows[1, i, t] = mjwc * rows[0, i, t] - 1j * rows[1, i, t]
 
 
 def _held_fit_py(
@@ -519,7 +504,7 @@ _KERNELS = {"vp": _vp_py, "lm_step": _lm_step_py, "held_fit": _held_fit_py,
             "shift_rows": _shift_rows_py, "held_result": _held_result_py}  # fmt: skip
 #: Helpers the kernels call, compiled into this module's namespace first.
 _HELPERS = ("_cholesky", "_chol_solve", "_normal_py", "_inverse_spd", "_vp_py", "_lm_step_py",
-            "_shift_rows_py", "_shift_row_py", "_held_summary_py", "_stable_order")  # fmt: skip
+            "_shift_row_py", "_shift_rows_py", "_held_summary_py", "_stable_order")  # fmt: skip
 
 
 @functools.cache
