@@ -1,0 +1,352 @@
+"""detect_template's helpers against closed forms and independent references (issue 21,
+the mutation check, second round: ``benchmarks/mutation.py``, ``docs/evidence.md``).
+
+Most tests call a helper of ``rangekit/detect/template.py`` directly, on a synthetic filter
+(a Gaussian-windowed analytic tone as the self response, known in closed form at any lag)
+or on a real probe's filter against numpy/scipy computations of what its docstring states:
+the main-lobe fit and its unexplained and odd shares, the CLEAN steps and their window,
+the first-order side-lobe pull against the exact peak shift, a tail's decay line, the
+cluster and local-floor windows, the filter's RMS bandwidth, sub-band shares, half lobe,
+coherent reach and template spectrum, the FIR's real response, and, on whole detections,
+the transducer term and the SNR, confidence and flags each by its rule. Seeded, fast
+(about 5 s).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import rangekit.detect.template as T
+
+FS = 44100.0
+
+# --- a synthetic filter: R(l) = exp(-l^2 / 2 s^2) exp(2 pi i f0 l), lags +- M --------------
+
+S, F0, M = 5.0, 0.12, 300
+K = 9  # |R| falls to 1/4 at l = s sqrt(2 ln 4) = 8.3: the first lag at or below is 9
+
+
+def R_an(t):
+    """The synthetic self response at any (real) lag ``t``."""
+    t = np.asarray(t, dtype=float)
+    return np.exp(-0.5 * (t / S) ** 2) * np.exp(2j * np.pi * F0 * t)
+
+
+def _wf(m: int = M, half_lobe: int = K) -> T._Filter:
+    R = R_an(np.arange(-m, m + 1.0))
+    return T._Filter(None, None, R, 0.03, 0.0, half_lobe, np.ones(8) / 8, 0, 0.0, F0)
+
+
+N_C = 2000
+L = np.arange(float(N_C))
+J, D = 1000, 0.3
+ALPHA = 0.7 * np.exp(0.4j)
+
+
+def _path(amp, at, n=L):
+    return amp * R_an(n - at)
+
+
+# --- the main-lobe fit (_lobe_fit, _shape) ------------------------------------------------
+
+
+def _eps_reference(c, j, d, floor):
+    """1 - rho^2 - noise share over the main lobe j +- K, the reference R(l - j - d)
+    evaluated in closed form."""
+    core = np.arange(j - K, j + K + 1)
+    r, s = R_an(core - j - d), c[core]
+    rr, ss = np.vdot(r, r).real, np.vdot(s, s).real
+    rho2 = abs(np.vdot(r, s)) ** 2 / (rr * ss)
+    return max(0.0, 1.0 - rho2 - (2 * K + 1) * 2.0 * floor**2 / ss)
+
+
+def test_half_lobe_of_the_synthetic_filter():
+    R = np.abs(R_an(np.arange(0.0, 20.0)))
+    assert R[K] <= 0.25 < R[K - 1]
+
+
+def test_a_path_alone_leaves_nothing_unexplained():
+    """``c`` exactly ``alpha R(l - j - d)``: eps 0 (to rounding), no rival; the noise share
+    only lowers it (clipped at 0)."""
+    wf = _wf()
+    c = _path(ALPHA, J + D)
+    eps, rival = T._shape(c, J, D, wf, 0.0)
+    assert eps < 1e-12 and not rival  # measured 2.2e-16
+    assert T._shape(c, J, D, wf, 0.01) == (0.0, False)
+
+
+@pytest.mark.parametrize("b", [0.2, 0.45, 0.55])
+@pytest.mark.parametrize("off", [5, 14, -11])
+@pytest.mark.parametrize("floor", [0.0, 0.004])
+def test_unexplained_fraction_is_one_minus_rho2_minus_the_noise_share(b, off, floor):
+    """A second path ``b`` times the first, ``off`` lags away: ``_shape``'s eps is ``1 -
+    rho^2 - (2 K + 1) 2 floor^2 / ss`` over the main lobe ``j +- K`` (computed here with
+    the closed-form reference), to 1e-12."""
+    wf = _wf()
+    c = _path(ALPHA, J + D) + _path(b * ALPHA, J + D + off)
+    eps, _ = T._shape(c, J, D, wf, floor)
+    want = _eps_reference(c, J, D, floor)
+    assert want > 1e-4 or floor > 0  # the second path is seen (measured >= 1.2e-3)
+    assert eps == pytest.approx(want, abs=1e-12, rel=1e-9)
+
+
+@pytest.mark.parametrize(("b", "rival"), [(0.3, False), (0.45, False), (0.55, True), (0.6, True)])
+def test_a_rival_path_within_two_lobes_is_at_least_half_the_height(b, rival):
+    """A second path 14 lags behind (beyond the main lobe K = 9, within 2 K): a rival when
+    the residual's peak reaches AMBIGUOUS_REL (0.5) of the path's height (the residual's
+    peak is about b: 0.45 is not, 0.55 is)."""
+    c = _path(ALPHA, J + D) + _path(b * ALPHA, J + D + 14)
+    assert T._shape(c, J, D, _wf(), 0.0)[1] is rival
+
+
+def test_a_rival_beyond_two_lobes_is_not_seen():
+    """The residual is read over ``j +- 2 K`` only: a path as strong 3 K away is no rival."""
+    c = _path(ALPHA, J + D) + _path(ALPHA, J + D + 3 * K)
+    assert T._shape(c, J, D, _wf(), 0.0)[1] is False
+
+
+def test_the_lobe_fit_needs_its_window_inside_c_and_the_self_response():
+    """``_lobe_fit`` reads ``c[j - half : j + half + 1]`` and the self response's ``+- half``
+    lags: None one sample short either way, a fit at the limits."""
+    wf = _wf()
+    h = 2 * K
+    c = _path(ALPHA, J + D)
+    assert T._lobe_fit(c[J - h :], h, D, wf, h) is not None
+    assert T._lobe_fit(c[J - h + 1 :], h - 1, D, wf, h) is None
+    n = J + h + 1  # c ends just after the window
+    assert T._lobe_fit(c[:n], J, D, wf, h) is not None
+    assert T._lobe_fit(c[: n - 1], J, D, wf, h) is None
+    assert T._lobe_fit(c, J, D, _wf(m=h + 1), h) is not None
+    assert T._lobe_fit(c, J, D, _wf(m=h), h) is None
+    assert T._lobe_fit(np.zeros(N_C, dtype=complex), J, D, wf, h) is None  # no energy
+    assert T._shape(np.zeros(N_C, dtype=complex), J, D, wf, 0.0) == (0.0, False)
+
+
+def test_the_lobe_fit_returns_the_window_and_the_main_lobes_energies():
+    """``(R, seg, rr, ss, <r, s>)``: the shifted self response and ``c`` over ``j +- half``,
+    and the energies and cross term over the main lobe ``j +- K``."""
+    wf = _wf()
+    h = K + 18
+    c = _path(ALPHA, J + D) + _path(0.3, J + 12)
+    R, seg, rr, ss, rs = T._lobe_fit(c, J, D, wf, h)
+    lag = np.arange(-h, h + 1.0)
+    np.testing.assert_allclose(R, R_an(lag - D), atol=1e-12)
+    np.testing.assert_array_equal(seg, c[J - h : J + h + 1])
+    core = np.arange(J - K, J + K + 1)
+    r, s = R_an(core - J - D), c[core]
+    assert rr == pytest.approx(np.vdot(r, r).real, rel=1e-12)
+    assert ss == pytest.approx(np.vdot(s, s).real, rel=1e-12)
+    assert rs == pytest.approx(np.vdot(r, s), rel=1e-12)
+
+
+# --- the residual's odd part (_odd_eps) ---------------------------------------------------
+
+
+def _odd_reference(c_at, j, d, floor):
+    """``_odd_eps`` by its docstring, with the analytic ``c`` read at the reflected lags."""
+    tau = j + d
+    core = np.arange(j - K, j + K + 1.0)
+    r, s = R_an(core - tau), c_at(core)
+    rr, ss = np.vdot(r, r).real, np.vdot(s, s).real
+    alpha = np.vdot(r, s) / rr
+    p = alpha / np.conj(alpha)
+
+    def e(t):
+        return c_at(t) - alpha * R_an(t - tau)
+
+    eo = 0.5 * (e(core) - p * np.conj(e(2 * tau - core)))
+    return max(0.0, np.vdot(eo, eo).real / ss - 0.5 * (2 * K + 1) * 2.0 * floor**2 / ss)
+
+
+@pytest.mark.parametrize(("b", "off"), [(0.3, 4), (0.5, -7), (0.2j, 3)])
+@pytest.mark.parametrize("floor", [0.0, 0.003])
+def test_odd_share_against_the_analytic_reflection(b, off, floor):
+    """An asymmetric residual (a second path ``off`` lags away): ``_odd_eps`` equals its
+    docstring's formula with the reflection read in closed form, within the windowed-sinc
+    interpolation's error (2e-4 absolute; measured 1.5e-5 at worst)."""
+
+    def c_at(t):
+        return ALPHA * R_an(t - J - D) + b * ALPHA * R_an(t - J - D - off)
+
+    got = T._odd_eps(c_at(L), J, D, _wf(), floor)
+    want = _odd_reference(c_at, J, D, floor)
+    assert want > 1e-3 or floor > 0  # measured >= 4e-3 without noise
+    assert got == pytest.approx(want, abs=2e-4)
+
+
+def test_an_even_residual_has_no_odd_share():
+    """Two paths placed symmetrically about the first, ``b`` real: the residual is even
+    about ``tau`` (``alpha`` stays real): no odd share (below 1e-5:
+    the interpolation's error), while one of them alone is odd."""
+    wf = _wf()
+    al = 0.8
+
+    def c_at(t):
+        return al * R_an(t - J - D) + 0.3 * al * (R_an(t - J - D - 5) + R_an(t - J - D + 5))
+
+    assert T._odd_eps(c_at(L), J, D, wf, 0.0) < 1e-5  # measured 4.2e-6
+    c = al * R_an(L - J - D) + 0.3 * al * R_an(L - J - D - 5)
+    assert T._odd_eps(c, J, D, wf, 0.0) > 1e-3
+
+
+def test_odd_share_window_needs_the_interpolations_pad():
+    """``_odd_eps`` reads ``K + SINC_HALF + 2`` lags each side: 0 one sample short."""
+    wf = _wf()
+    h = K + T.SINC_HALF + 2
+    c = _path(ALPHA, J + D) + _path(0.4 * ALPHA, J + D + 5)
+    assert T._odd_eps(c[J - h :], h, D, wf, 0.0) > 1e-3
+    assert T._odd_eps(c[J - h + 1 :], h - 1, D, wf, 0.0) == 0.0
+
+
+# --- CLEAN steps (_other_paths) -----------------------------------------------------------
+
+
+def _c_with(paths, d=D):
+    c = _path(ALPHA, J + d)
+    for a, p in paths:
+        c = c + _path(a, p)
+    return c
+
+
+def test_other_paths_are_found_at_their_lags_with_their_amplitudes():
+    """Two other paths at integer lags, 60 and 140 lags away (beyond two main lobes):
+    ``(amplitude, lag)`` each, strongest first, to 1e-9."""
+    want = [(0.5 - 0.2j, J + 140), (-0.3j, J - 60)]
+    got = T._other_paths(_c_with(want), J, D, _wf(), 0.01)
+    assert [p for _, p in got] == [J + 140, J - 60]
+    for (a, _), (b, _) in zip(got, want, strict=True):
+        assert a == pytest.approx(b, abs=1e-9)
+
+
+def test_other_paths_stop_below_the_threshold_and_after_leak_paths():
+    """Only paths at least ``thr``; at most LEAK_PATHS (8) of ten, the strongest."""
+    wf = _wf()
+    paths = [(0.5, J + 60), (0.2, J - 60)]
+    assert [p for _, p in T._other_paths(_c_with(paths), J, D, wf, 0.3)] == [J + 60]
+    assert [p for _, p in T._other_paths(_c_with(paths), J, D, wf, 0.19)] == [J + 60, J - 60]
+    ten = [(0.1 * (10 - i), J + 40 * (i - 5) + (20 if i >= 5 else 0)) for i in range(10)]
+    got = T._other_paths(_c_with(ten), J, D, wf, 0.01)
+    assert T.LEAK_PATHS == 8 and len(got) == 8
+    assert [p for _, p in got] == [p for _, p in ten[:8]]
+
+
+@pytest.mark.parametrize("side", [1, -1])
+def test_other_paths_within_the_self_responses_reach(side):
+    """The window is the lags ``|l - j| < M`` (and inside ``c``): a path ``M - 1`` lags away
+    is found at its lag; one ``M`` away is not located there (what reaches into the
+    window is its side: found one lag nearer, if at all)."""
+    wf = _wf()
+    p_in = J + side * (M - 1)
+    got = T._other_paths(_c_with([(0.5, p_in)]), J, 0.0, wf, 0.01)
+    assert [p for _, p in got] == [p_in]
+    p_out = J + side * M
+    got = T._other_paths(_c_with([(0.5, p_out)]), J, 0.0, wf, 0.01)
+    assert p_out not in [p for _, p in got]
+    assert all(abs(p - J) < M for _, p in got)
+
+
+@pytest.mark.parametrize("side", [1, -1])
+def test_other_paths_are_sought_beyond_two_main_lobes(side):
+    """The path's own lobes (``|l - j| <= 2 K``) are not searched: a path 2 K + 1 lags away
+    is found at its lag, one at 2 K is not."""
+    wf = _wf()
+    p = J + side * (2 * K + 1)
+    got = T._other_paths(_c_with([(0.6, p)], d=0.0), J, 0.0, wf, 0.01)
+    assert got and got[0][1] == p
+    p = J + side * 2 * K
+    got = T._other_paths(_c_with([(0.6, p)], d=0.0), J, 0.0, wf, 0.01)
+    assert p not in [q for _, q in got]
+
+
+def test_other_paths_guards():
+    """None without a window of ``4 K + 3`` lags, or with no path at ``j``."""
+    wf = _wf()
+    c = _c_with([(0.5, J + 60)])
+    assert T._other_paths(c, J, D, wf, 0.01)
+    c0 = c.copy()
+    c0[J] = 0.0
+    assert T._other_paths(c0, J, D, wf, 0.01) == []
+    # A short c: the window [1, len - 1) must hold 4 K + 3 lags (= 2 * 2K + 3).
+    short = _path(ALPHA, 20 + D, np.arange(41.0))
+    short[1] += 0.5  # 19 lags before j = 20: beyond two lobes, inside the window
+    got = T._other_paths(short, 20, D, wf, 0.01)
+    assert [p for _, p in got] == [1]  # a window of 39 lags: searched
+    assert T._other_paths(short[:40], 20, D, wf, 0.01) == []  # 38 lags: too short
+
+
+# --- the side lobes' pull (_leakage) ------------------------------------------------------
+
+
+def _true_shift(paths, d=D):
+    t = np.linspace(J + d - 1.0, J + d + 1.0, 200001)
+    ct = ALPHA * R_an(t - J - d)
+    for a, p in paths:
+        ct = ct + a * R_an(t - p)
+    return float(t[np.argmax(np.abs(ct))] - (J + d))
+
+
+@pytest.mark.parametrize("a", [0.3, 0.5, -0.4j])
+@pytest.mark.parametrize("off", [15, 20, -15, -20, 25])
+def test_the_pull_is_the_envelope_peaks_first_order_shift(a, off):
+    """One other path ``a`` at ``j + off``: ``_leakage`` (signed, samples) against the
+    exact shift of ``|c|``'s peak (a fine grid on the closed form): the ratio within
+    0.7-1.5 (measured 0.84-1.33: the first order and the three-lag derivative)."""
+    paths = [(complex(a), J + off)]
+    pull = T._leakage(_c_with(paths), J, D, _wf(), paths)
+    true = _true_shift(paths)
+    assert abs(true) > 5e-6
+    assert 0.7 < pull / true < 1.5, (pull, true)
+
+
+def test_the_pull_guards():
+    """0 without paths, at ``j`` 0 or the last sample, a path more than M lags away pulls
+    nothing, and a flat self response (no curvature) gives 0."""
+    wf = _wf()
+    paths = [(0.5 + 0j, J + 15)]
+    c = _c_with(paths)
+    assert T._leakage(c, J, D, wf, []) == 0.0
+    assert T._leakage(c, 0, D, wf, paths) == 0.0
+    assert T._leakage(c, N_C - 1, D, wf, paths) == 0.0
+    for j in (1, N_C - 2):
+        edge = [(0.5 + 0j, j + 15 if j == 1 else j - 15)]
+        cj = _path(ALPHA, j + D) + _path(0.5, edge[0][1])
+        assert T._leakage(cj, j, D, wf, edge) != 0.0
+    # A self response with tails to its ends (a small tone added): a path read at lags
+    # |t - p| < M only, so one M + 1 lags from j (M from j + 1) pulls nothing.
+    lag = np.arange(-M, M + 1.0)
+    tailed = T._Filter(None, None, R_an(lag) + 0.01 * np.exp(2j * np.pi * F0 * lag), 0.03, 0.0,
+                       K, np.ones(8) / 8, 0, 0.0, F0)  # fmt: skip
+    for p, moved in ((J + M + 1, False), (J - M - 1, False), (J + M, True), (J - M, True)):
+        assert bool(T._leakage(c, J, D, tailed, [(0.5 + 0j, p)]) != 0.0) is moved, p
+    c0 = c.copy()
+    c0[J] = 0.0
+    assert T._leakage(c0, J, D, wf, paths) == 0.0
+    flat = T._Filter(None, None, np.ones(2 * M + 1, complex), 0.03, 0.0, K, np.ones(8) / 8, 0,
+                     0.0, F0)  # fmt: skip
+    assert T._leakage(c, J, 0.0, flat, paths) == 0.0
+
+
+# --- the shape term with the other paths taken out (_unexplained) ------------------------
+
+
+def test_unexplained_once_the_other_paths_are_subtracted():
+    """Two other paths whose lobes reach into the window ``j +- 2 K`` (at +20 and -18):
+    subtracted, nothing is left (below 1e-12); not subtracted, ``_shape``'s share of ``c``;
+    and it is ``_shape`` of ``c`` less the paths (computed here)."""
+    wf = _wf()
+    paths = [(0.4 + 0.1j, J + 20), (-0.3 + 0j, J - 18)]
+    c = _c_with(paths)
+    assert T._unexplained(c, J, D, wf, 0.0, paths) < 1e-12
+    alone = T._unexplained(c, J, D, wf, 0.0, [])
+    assert (
+        alone == pytest.approx(T._shape(c, J, D, wf, 0.0)[0], rel=1e-12) and alone > 1e-3
+    )  # measured 1.8e-3
+    half = _c_with(paths[1:])
+    got = T._unexplained(c, J, D, wf, 0.002, paths[:1])
+    assert got == pytest.approx(_eps_reference(half, J, D, 0.002), rel=1e-9, abs=1e-14)
+    h = 2 * K
+    assert T._unexplained(c[J - h :], h, D, wf, 0.0, []) > 0.0
+    assert T._unexplained(c[J - h + 1 :], h - 1, D, wf, 0.0, []) == 0.0
+    assert T._unexplained(c[: J + h + 1], J, D, wf, 0.0, []) > 0.0
+    assert T._unexplained(c[: J + h], J, D, wf, 0.0, []) == 0.0
