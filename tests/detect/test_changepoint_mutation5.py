@@ -1,0 +1,478 @@
+"""Change-point detector, eighth mutation round: rules no earlier test pinned.
+
+Written by reading ``rangekit/detect/changepoint.py`` top to bottom (not against one
+sample's survivors): each documented constant is tested where it changes a result,
+including the sample-rate rounding of the constants given in samples at 44.1 kHz
+(``HOP_S = 32 / 44100`` and its kin: at a rate where ``n fs / 44100`` lies just above a
+half, ``/ 44101`` rounds the other way), and the numpy paths are compared with their
+independent references: the python forms of the compiled kernels
+(``_edge_kernels._change_points_py``, ``_anchors_py``), ``numpy.median``,
+``scipy.ndimage.maximum_filter1d``, a weighted ``numpy.polyfit``, a loop over the
+precursor windows, and ``condition.bandlimit`` of the whole recording. Short seeded
+inputs only.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+import scipy.ndimage
+
+from rangekit.detect import _edge_kernels as K
+from rangekit.detect import changepoint as cp
+from rangekit.detect.condition import bandlimit
+from rangekit.signals import Beep
+from rangekit.types import Arrivals
+
+FS = 44100.0
+
+
+def _rate(n: int, k: int, delta: float) -> float:
+    """A sample rate at which ``n`` samples at 44.1 kHz are ``k + 0.5 + delta`` samples:
+    ``round`` gives ``k + 1``, while the same with ``/ 44101`` gives ``k`` (delta below
+    ``(k + 0.5) / 44101``)."""
+    return (k + 0.5 + delta) * 44100.0 / n
+
+
+# n samples at 44.1 kHz -> a rate where they round up (k + 1) and 44101 would round down.
+FS_32 = _rate(32, 37, 4e-4)  # 37.5004 samples (/44101: 37.4996)
+FS_64 = _rate(64, 75, 8e-4)  # 75.5008 (/44101: 75.4991)
+FS_128 = _rate(128, 150, 1e-3)  # 150.501 (/44101: 150.4976)
+FS_8 = _rate(8, 9, 1e-4)  # 9.5001 (/44101: 9.4999)
+FS_256 = _rate(256, 300, 2e-3)  # 300.502 (/44101: 300.4952)
+
+
+def test_the_rates_round_as_designed():
+    """The tuned rates: ``n fs / 44100`` rounds up, ``n fs / 44101`` down."""
+    for n, fs, k in ((32, FS_32, 37), (64, FS_64, 75), (128, FS_128, 150), (8, FS_8, 9),
+                     (256, FS_256, 300)):  # fmt: skip
+        assert round(n * fs / 44100) == k + 1 and round(n * fs / 44101) == k
+
+
+@pytest.mark.parametrize(
+    ("fs", "n_win", "hop"), [(FS, 128, 32), (FS_128, 151, 38), (FS_32, 150, 38)]
+)
+def test_the_stft_window_and_hop_are_128_and_32_samples_at_44100_hz(fs, n_win, hop):
+    """``WIN_S = 128 / 44100`` and ``HOP_S = 32 / 44100`` s, rounded to samples at each
+    rate (``find_bursts``' defaults): at 51855 Hz 150.501 -> 151 samples, at 51681 Hz a
+    hop of 37.5004 -> 38."""
+    x = 1e-3 * np.random.default_rng(0).standard_normal(4000)
+    got = cp.find_bursts(x, fs=fs, beep=Beep())
+    assert (got.n_win, got.hop) == (n_win, hop)
+    assert (n_win, hop) == (round(128 * fs / 44100), round(32 * fs / 44100))
+
+
+def test_stft_params_floors_and_caps():
+    """The window is 16 samples at least, the hop 1 at least and a window at most."""
+    assert cp._stft_params(FS, 1e-4, 1e-6) == (16, 1)  # 4.41 and 0.04 samples
+    assert cp._stft_params(FS, 128 / FS, 1.0) == (128, 128)
+    assert cp._stft_params(FS, 100 / FS, 7 / FS) == (100, 7)
+
+
+@pytest.mark.parametrize("fs", [FS, FS_8, FS_256])
+def test_last_frames_guard_is_8_and_the_count_256_samples_at_44100_hz(fs):
+    """``_last_frames``: the last frame ending ``PRE_GUARD_S`` (8 samples at 44.1 kHz)
+    or more before the onset, ``floor((t0 - guard - n_win) / hop)``, and
+    ``round(PRE_LAST_S fs / hop)`` frames (256 samples at 44.1 kHz), at least 1."""
+    guard, count = round(8 * fs / 44100), round(256 * fs / 44100)
+    assert cp._last_frames(1000.0, hop=1, n_win=100, fs=fs) == (1000 - guard - 100, count)
+    # hop 32 at 44.1 kHz: (1000.5 - 8 - 128) / 32 = 27.02 -> 27 (a guard of 9: 26.98)
+    assert cp._last_frames(1000.5, hop=32, n_win=128, fs=FS) == (27, 8)
+    assert cp._last_frames(1000.0, hop=1000, n_win=16, fs=8000.0)[1] == 1  # 0.046 -> 1
+
+
+@pytest.mark.parametrize(
+    ("fs", "lengths", "guard"),
+    [(FS, (32, 64, 128), 8), (FS_32, (38, 75, 150), 9), (FS_64, (38, 76, 151), 9),
+     (FS_128, (38, 75, 151), 9), (4000.0, (5, 6, 12), 1)],
+)  # fmt: skip
+def test_precursor_windows_are_32_64_and_128_samples_at_44100_hz(fs, lengths, guard, monkeypatch):
+    """``precursor_hits`` reads windows of ``PRE_TONE_S`` (32, 64 and 128 samples at 44.1
+    kHz, rounded at each rate, the guard plus 4 samples at least: at 4 kHz a guard of 1
+    and 2.9 samples give 5) ending ``PRE_GUARD_S`` (8 samples) before each onset."""
+    seen = []
+
+    def spy(x, onsets, **kw):
+        seen.append((kw["lengths"], kw["guard"]))
+        return np.zeros((len(onsets), len(kw["lengths"])))
+
+    monkeypatch.setattr(cp, "precursor_ratio", spy)
+    cp.precursor_hits(np.zeros(40000), np.array([10000.0]), fs=fs, beep=Beep())
+    assert seen == [(lengths, guard)]
+    assert lengths == tuple(max(guard + 4, round(n * fs / 44100)) for n in (32, 64, 128))
+
+
+def _runs(n: int, runs: list[tuple[int, int]]) -> np.ndarray:
+    m = np.zeros(n, dtype=bool)
+    for a, length in runs:
+        m[a : a + length] = True
+    return m
+
+
+@pytest.mark.parametrize(
+    ("fs", "max_len", "gap"), [(FS, 8, 32), (FS_8, 10, 38), (FS_32, 9, 38), (2000.0, 1, 2)]
+)
+def test_a_click_is_8_samples_at_most_and_32_from_any_other_at_44100_hz(fs, max_len, gap):
+    """``click_mask``: a run of at most ``CLICK_MAX_S`` (8 samples at 44.1 kHz, 1 at
+    least) with no other clipped sample within ``CLICK_GAP_S`` (32 samples, 2 at least)
+    is a click; a run one sample longer, or a neighbour ``gap`` samples away, is not."""
+    assert (max_len, gap) == (max(1, round(8 * fs / 44100)), max(2, round(32 * fs / 44100)))
+    n = 1000
+    assert cp.click_mask(_runs(n, [(100, max_len)]), fs=fs).any()
+    assert not cp.click_mask(_runs(n, [(100, max_len + 1)]), fs=fs).any()
+    # two single clipped samples: apart by more than gap both are clicks, at gap neither
+    far = cp.click_mask(_runs(n, [(300, 1), (301 + gap, 1)]), fs=fs)
+    assert np.flatnonzero(far).tolist() == sorted({*range(298, 303), *range(299 + gap, 304 + gap)})
+    assert not cp.click_mask(_runs(n, [(300, 1), (300 + gap, 1)]), fs=fs).any()
+
+
+def _random_series(rng: np.random.Generator, n: int) -> np.ndarray:
+    """Exponential noise (mean 1) with a few bursts, steps within them, silences."""
+    e = rng.exponential(1.0, n)
+    for _ in range(rng.integers(1, 5)):
+        a = int(rng.integers(0, n - 10))
+        b = min(n, a + int(rng.integers(3, 40)))
+        e[a:b] *= 10 ** rng.uniform(0.3, 4.0)
+        if b - a > 10 and rng.random() < 0.5:
+            s = a + int(rng.integers(4, b - a))
+            e[s:b] *= 10 ** rng.uniform(0.5, 2.5)
+    if rng.random() < 0.3:
+        a = int(rng.integers(0, n - 20))
+        e[a : a + int(rng.integers(5, 20))] = 0.0
+    return e
+
+
+def test_numpy_change_points_equal_the_kernels_on_random_series():
+    """``_change_points`` (numpy path, series shorter than ``NUMBA_MIN_SAMPLES // hop``
+    frames) gives the frames of ``_edge_kernels._change_points_py`` (its independent loop
+    form) with the documented parameters: the recent level is the mean of the 8 frames
+    ending ``ceil(n_win / hop) + lookback`` frames before the frame, the thresholds
+    ``10^(dB / 10)``, a second step ``ceil(n_win / hop)`` frames or more into a run. 400
+    seeded series, with the series' start (fewer than 8 frames of recent level) and
+    floors per frame."""
+    rng = np.random.default_rng(5)
+    n_steps = 0
+    for _ in range(400):
+        n = int(rng.integers(20, 160))
+        e = _random_series(rng, n)
+        floor = rng.uniform(0.5, 2.0) * np.ones(n) if rng.random() < 0.5 else None
+        n_win, hop = int(rng.choice([16, 64, 128, 100])), int(rng.choice([8, 16, 32]))
+        thr_db, rise_db = float(rng.uniform(3, 15)), float(rng.uniform(3, 15))
+        lookback = int(rng.integers(0, 4))
+        got = cp._change_points(
+            e, n_win=n_win, hop=hop, threshold_db=thr_db, rise_db=rise_db, floor=floor,
+            lookback=lookback,
+        )  # fmt: skip
+        fl = np.full(n, cp.active_floor(e)) if floor is None else floor
+        w = math.ceil(n_win / hop)
+        ref = K._change_points_py(
+            e, fl, w + lookback, 8, 10 ** (thr_db / 10), 10 ** (rise_db / 10), w
+        )
+        assert got.dtype == np.int64 and got.tolist() == ref.tolist()
+        n_steps += len(ref)
+    assert n_steps > 400  # measured 1100-odd change points in all
+
+
+def test_change_points_at_the_series_start_read_the_frames_there_are():
+    """At frame ``gap + 1`` the recent level is frame 0 alone (one frame, its mean: 100
+    here, so a frame of 50 does not rise 10 dB over it); before that there is none and
+    the floor stands in (a frame of 5 is not 10 dB over a floor of 1, one of 11 is)."""
+    kw = {"n_win": 128, "hop": 32, "threshold_db": 6.0, "rise_db": 10.0}
+    gap = 4
+    e = np.ones(40)
+    e[0] = 100.0
+    e[gap + 1] = 50.0
+    assert cp._change_points(e, floor=np.ones(40), **kw).tolist() == [0]
+    e[gap + 1] = 1001.0  # over 10 x 100
+    assert cp._change_points(e, floor=np.ones(40), **kw).tolist() == [0, gap + 1]
+    for v, found in ((5.0, False), (11.0, True)):
+        e = np.ones(40)
+        e[2] = v
+        assert (2 in cp._change_points(e, floor=np.ones(40), **kw).tolist()) == found
+    assert cp._change_points(np.zeros(0), **kw).tolist() == []
+
+
+def test_long_series_go_to_the_kernel_with_the_same_parameters():
+    """A series of ``NUMBA_MIN_SAMPLES // hop`` frames or more is done by the compiled
+    kernel, with the parameters the numpy path uses (compared with the python form)."""
+    rng = np.random.default_rng(1)
+    hop = 32
+    n = K.NUMBA_MIN_SAMPLES // hop
+    e = _random_series(rng, n)
+    for _ in range(40):
+        a = int(rng.integers(0, n - 50))
+        e[a : a + 30] *= 10 ** rng.uniform(0.5, 3.0)
+    fl = rng.uniform(0.5, 2.0) * np.ones(n)
+    got = cp._change_points(
+        e, n_win=128, hop=hop, threshold_db=7.0, rise_db=9.0, floor=fl, lookback=2
+    )
+    ref = K._change_points_py(e, fl, 4 + 2, 8, 10**0.7, 10**0.9, 4)
+    assert len(ref) > 40 and got.tolist() == ref.tolist()
+    short = cp._change_points(
+        e[: n - 1], n_win=128, hop=hop, threshold_db=7.0, rise_db=9.0, floor=fl[: n - 1],
+        lookback=2,
+    )  # fmt: skip
+    assert short.tolist() == [v for v in ref.tolist() if v < n - 1]
+
+
+def _anchor_kernel(c, e, *, hop, n_win, beep, fs):
+    """``_edge_kernels._anchors_py`` with the documented arguments: the plateau from a
+    window (``n_win // hop`` frames) after each place over the burst less two windows,
+    the level before over the 8 frames ending a window before, ``MIN_RISE_DB`` = 1.5."""
+    cs = np.concatenate(([0.0], np.cumsum(e)))
+    w = max(1, n_win // hop)
+    n_plat = max(1, int((beep.burst_s * fs - 2 * n_win) / hop))
+    return K._anchors_py(
+        np.asarray(c, dtype=np.int64), cs, len(e), hop, w, n_plat, beep.spacing_s * fs,
+        beep.n_bursts, 1.5,
+    )  # fmt: skip
+
+
+@pytest.mark.parametrize("n_bursts", [2, 3, 4])
+def test_anchor_equals_the_kernels_on_random_band_energies(n_bursts):
+    """``_anchor`` (numpy) and ``_anchors_compiled`` give the beep start and rising
+    places of ``_edge_kernels._anchors_py`` on random band energies: bursts of random
+    rises (falls, 0-40 dB, silences, so the [0, 30] dB clip, the empty plateau and the
+    1.5 dB count all decide somewhere) at random places, change points anywhere,
+    including the series' ends (places whose frames leave the series are skipped)."""
+    rng = np.random.default_rng(n_bursts)
+    beep = Beep(n_bursts=n_bursts, spacing=1500)
+    hop, n_win = 32, 128
+    for _ in range(30):
+        n = int(rng.integers(200, 600))
+        e = rng.exponential(1.0, n)
+        for _ in range(int(rng.integers(2, 9))):
+            a = int(rng.integers(0, n - 14))
+            e[a : a + 14] *= 10 ** rng.uniform(-1.0, 4.0)
+        if rng.random() < 0.5:
+            a = int(rng.integers(0, n - 30))
+            e[a : a + int(rng.integers(10, 30))] = 0.0
+        c = rng.integers(0, n * hop, 40)
+        ref = _anchor_kernel(c, e, hop=hop, n_win=n_win, beep=beep, fs=FS)
+        got = [cp._anchor(int(v), e, hop=hop, n_win=n_win, spacing=beep.spacing_s * FS,
+                          beep=beep, fs=FS) for v in c]  # fmt: skip
+        assert got == [tuple(r) for r in ref.tolist()]
+        cs = np.concatenate(([0.0], np.cumsum(e)))
+        comp = cp._anchors_compiled(c, cs, n, hop=hop, n_win=n_win, beep=beep, fs=FS)
+        assert comp == got
+
+
+def test_levels_and_rise_of_a_burst_place():
+    """``_levels``: the mean band energy over the ``n_plat`` frames from a window (``w``
+    frames) after the place's frame ``round(place / hop)`` and over the 8 frames ending a
+    window before it; None where those leave the series. ``_rise_of``: 10 log10 of their
+    ratio clipped to [0, 30] dB, None for an empty plateau."""
+    e = np.arange(1.0, 101.0) ** 2
+    cs = np.concatenate(([0.0], np.cumsum(e)))
+    kw = {"hop": 10, "w": 4, "n_plat": 5}
+    f = 30  # place 303.0 -> frame 30
+    got = cp._levels(303.0, cs, 100, **kw)
+    assert got == (float(np.mean(e[34:39])), float(np.mean(e[18:26])))
+    assert cp._levels(298.0, cs, 100, **kw) == got  # 29.8 -> frame 30
+    # the first place whose 8 frames before exist: f - 4 - 8 = 0; the last: f + 4 + 5 = 100
+    assert cp._levels(120.0, cs, 100, **kw) is not None
+    assert cp._levels(110.0, cs, 100, **kw) is None
+    assert cp._levels(910.0, cs, 100, **kw) is not None
+    assert cp._levels(920.0, cs, 100, **kw) is None
+    assert f == 30
+    assert cp._rise_of((10.0, 1.0)) == pytest.approx(10.0, abs=1e-12)
+    assert cp._rise_of((0.5, 0.01)) == pytest.approx(10 * math.log10(50.0), abs=1e-12)
+    assert cp._rise_of((1e4, 1.0)) == 30.0  # 40 dB, clipped
+    assert cp._rise_of((1.0, 0.0)) == 30.0
+    assert cp._rise_of((1.0, 2.0)) == 0.0  # a fall
+    assert cp._rise_of((0.0, 1.0)) is None and cp._rise_of(None) is None
+    assert cp._rise_db(303.0, cs, 100, **kw) == cp._rise_of(got)
+
+
+def _precursor_reference(x, onsets, *, fs, f_hz, lengths, guard):
+    """The docstring of ``precursor_ratio`` as a loop: per burst, |sum w x e^(-i w0 n)|^2
+    over the ``length - guard`` samples ending ``guard`` before ``floor(onset)`` (w the
+    Hann window of that many nonzero samples), over its mean over windows of that length
+    every half window (``max(1, n // 2)``) in the ``round(PRE_NEAR_S fs)`` samples just
+    before that window; the smallest over the bursts."""
+    far = round(0.025 * fs)
+    w0 = 2 * math.pi * f_hz / fs
+    out = np.full((len(onsets), len(lengths)), np.nan)
+    span = far + max(lengths) - guard
+    for r, row in enumerate(np.atleast_2d(onsets)):
+        ends = [math.floor(t) - guard for t in row]
+        if any(e - span < 0 or e > len(x) for e in ends):
+            continue
+        for c, length in enumerate(lengths):
+            n = length - guard
+            win = 0.5 - 0.5 * np.cos(2 * np.pi * np.arange(1, n + 1) / (n + 1))
+            h = win * np.exp(-1j * w0 * np.arange(n))
+            ratios = []
+            for e in ends:
+                last = abs(np.dot(h, x[e - n : e])) ** 2
+                s0 = e - n - far
+                lv = [
+                    abs(np.dot(h, x[s : s + n])) ** 2
+                    for s in range(s0, e - 2 * n + 1, max(1, n // 2))
+                ]
+                ratios.append(last / np.mean(lv))
+            out[r, c] = min(ratios)
+    return out
+
+
+def test_precursor_ratio_equals_its_definition_on_random_recordings():
+    """``precursor_ratio`` against a loop over its windows (the docstring's definition) on
+    white noise with a tone here and there, for several window lengths and guards, a beep
+    whose first burst's stretch starts at sample 0 exactly (tested) and one a sample
+    earlier (NaN)."""
+    rng = np.random.default_rng(3)
+    beep = Beep()
+    for trial in range(6):
+        x = rng.standard_normal(30000)
+        t = np.arange(len(x))
+        x += (trial % 3) * np.sin(2 * np.pi * beep.f_hz / FS * t) * (t % 3000 < 400)
+        guard = int(rng.integers(1, 12))
+        lengths = (int(rng.integers(guard + 4, 40)), 64, int(rng.integers(65, 200)))
+        span = round(0.025 * FS) + max(lengths) - guard
+        first = np.array([span + guard, span + guard - 1, 8000.7, 15000.2, 29000.0])
+        on = first[:, None] + 3000.0 * np.arange(3)[None, :]
+        on[4] = [29000.0, 29500.0, 30001.0 + guard]  # the last window past the end: NaN
+        kw = {"fs": FS, "f_hz": beep.f_hz, "lengths": lengths, "guard": guard}
+        got = cp.precursor_ratio(x, on, **kw)
+        ref = _precursor_reference(x, on, **kw)
+        assert np.array_equal(np.isnan(got), np.isnan(ref))
+        assert np.isnan(got[1]).all() and np.isnan(got[4]).all() and not np.isnan(got[0]).any()
+        np.testing.assert_allclose(got, ref, rtol=1e-9)
+        one = cp.precursor_ratio(x, on[2], **kw)
+        np.testing.assert_allclose(one, ref[2:3], rtol=1e-9)
+
+
+def test_median_of_a_few_floats_is_numpys():
+    rng = np.random.default_rng(0)
+    for n in range(1, 9):
+        for _ in range(20):
+            v = rng.normal(size=n).tolist()
+            assert cp._median(v) == pytest.approx(float(np.median(v)), abs=1e-15)
+
+
+def test_widen_is_scipys_maximum_filter():
+    rng = np.random.default_rng(0)
+    for half in range(0, 6):
+        for n in (1, 5, 40):
+            f = rng.exponential(1.0, n)
+            ref = scipy.ndimage.maximum_filter1d(f, 2 * half + 1, mode="constant")
+            assert cp._widen(f, half).tolist() == ref.tolist()
+
+
+def test_drift_line_is_the_weighted_least_squares_line_of_each_row():
+    """``_drift_line``: per row of ``members``, the weighted mean index ``kbar`` and
+    estimate (the line's value there) and the weighted least-squares slope (``numpy
+    .polyfit`` with weights sqrt(w)), held within +-200 ppm of the spacing; a row of
+    one burst has slope 0, a row of none an infinite mean."""
+    rng = np.random.default_rng(2)
+    spacing = 5000.0
+    lim = 200e-6 * spacing
+    for _ in range(50):
+        k_b = int(rng.integers(2, 7))
+        ks = np.sort(rng.choice(8, k_b, replace=False)).astype(float)
+        est = 1000.0 + rng.normal(0, 1.5, k_b)
+        w = rng.uniform(0.2, 5.0, k_b)
+        members = rng.random((6, k_b)) < 0.6
+        members[0] = False
+        members[1] = True
+        mean, slope, kbar = cp._drift_line(ks, est, w, members, spacing)
+        assert mean[0] == np.inf and slope[0] == 0.0
+        for r in range(1, 6):
+            m = members[r]
+            if not m.any():
+                assert mean[r] == np.inf
+                continue
+            kb = np.sum(w[m] * ks[m]) / np.sum(w[m])
+            assert kbar[r] == pytest.approx(kb, rel=1e-12)
+            assert mean[r] == pytest.approx(np.sum(w[m] * est[m]) / np.sum(w[m]), rel=1e-12)
+            if m.sum() == 1:
+                assert slope[r] == 0.0
+                continue
+            s = np.polyfit(ks[m], est[m], 1, w=np.sqrt(w[m]))[0]
+            assert slope[r] == pytest.approx(float(np.clip(s, -lim, lim)), abs=1e-9)
+
+
+def test_found_onsets_within_a_closed_interval():
+    found = cp._Found()
+    assert not found.within(-1e9, 1e9)
+    for t in (300.0, 100.0, 200.0):
+        found.add(t)
+    assert found.t == [100.0, 200.0, 300.0]
+    assert found.within(100.0, 100.0) and found.within(50.0, 100.0) and found.within(300.0, 400.0)
+    assert not found.within(100.5, 199.5) and not found.within(300.5, 1e9)
+    assert not found.within(0.0, 99.5)
+
+
+def _arrivals(onsets, confidence):
+    n = len(onsets)
+    return Arrivals(
+        np.asarray(onsets, dtype=float), FS, np.ones(n), np.full(n, 30.0),
+        np.asarray(confidence, dtype=float), np.zeros((n, 4)), "changepoint",
+    )  # fmt: skip
+
+
+def test_drop_echoes_keeps_an_arrival_starting_exactly_at_the_earlier_ones_end():
+    """An arrival starting at the earlier one's end (onset + duration) is not inside it:
+    kept; one a sample earlier is dropped (same confidence); a later one replacing an
+    earlier one starts the next span from its own onset."""
+    d = 1000.0
+    assert cp.drop_echoes(_arrivals([0.0, 1000.0], [1, 1]), duration=d).onset.tolist() == [
+        0.0,
+        1000.0,
+    ]
+    assert cp.drop_echoes(_arrivals([0.0, 999.0], [1, 1]), duration=d).onset.tolist() == [0.0]
+    got = cp.drop_echoes(_arrivals([0.0, 500.0, 1200.0, 1500.0], [0.75, 1, 1, 1]), duration=d)
+    assert got.onset.tolist() == [500.0, 1500.0]
+    got = cp.drop_echoes(_arrivals([0.0, 500.0], [0.75, 0.75 + 0.5e-9]), duration=d)
+    assert got.onset.tolist() == [0.0]
+
+
+@pytest.mark.parametrize("compiled", [False, True])
+def test_a_conditioned_segment_is_the_band_limited_recording_cut(compiled):
+    """``_Conditioner.segment(a, b)``: samples ``[a, b)`` of the whole recording through
+    ``bandlimit`` (the filter reads the samples around the stretch), cut to the recording
+    at both ends; its offset is the first sample's index."""
+    rng = np.random.default_rng(4)
+    x = rng.standard_normal(6000)
+    beep = Beep()
+    cond = cp._conditioner(x, fs=FS, beep=beep, condition=True, compiled=compiled)
+    cond = cp._Conditioner(x, cond.taps, None, compiled)
+    full = bandlimit(x, cond.taps)
+    for a, b in ((0, 500), (-40, 300), (2000, 2600), (5700, 6000), (5800, 6300), (10, 11)):
+        y, off = cond.segment(a, b)
+        assert off == max(0, a)
+        np.testing.assert_allclose(y, full[max(0, a) : min(6000, b)], rtol=0, atol=1e-12)
+    raw = cp._conditioner(x, fs=FS, beep=beep, condition=False)
+    y, off = raw.segment(-5, 20)
+    assert off == 0 and y.tolist() == x[:20].tolist()
+
+
+def test_is_clipped_reads_the_stretch_from_the_recordings_start():
+    m = np.zeros(100, dtype=bool)
+    m[0] = True
+    cond = cp._Conditioner(np.zeros(100), None, m)
+    assert cond.is_clipped(0, 5) and cond.is_clipped(-3, 1) and not cond.is_clipped(1, 100)
+    assert not cp._Conditioner(np.zeros(100), None, None).is_clipped(0, 100)
+
+
+@pytest.mark.parametrize("compiled", [False, True])
+def test_out_of_band_reads_the_middle_65536_samples(compiled):
+    """``_out_of_band`` reads ``1 << 16`` samples from the middle of the recording: a
+    recording of 4 x 65536 samples whose middle quarter holds the beep's tone and its
+    rest 50 Hz hum 20 times as strong is not flagged (the hum is not read), the same with
+    the hum in the middle is; a recording of 65536 samples or fewer is read whole."""
+    beep = Beep()
+    n, q = 4 * 65536, 65536
+    t = np.arange(n) / FS
+    tone = 0.05 * np.sin(2 * np.pi * beep.f_hz * t)
+    hum = np.sin(2 * np.pi * 50.0 * t)
+    mid = (np.arange(n) >= (n - q) // 2) & (np.arange(n) < (n + q) // 2)
+    for x, flagged in ((np.where(mid, tone, hum), False), (np.where(mid, hum, tone), True)):
+        cond = cp._conditioner(x, fs=FS, beep=beep, condition=True)
+        cond = cp._Conditioner(x, cond.taps, None, compiled)
+        assert cp._out_of_band(x, cond) == flagged
+    short = np.where(np.arange(30000) < 29000, tone[:30000], 50 * hum[:30000])
+    cond = cp._Conditioner(short, cp.beep_taps(beep, FS), None, compiled)
+    assert cp._out_of_band(short, cond)
