@@ -14,6 +14,9 @@ the transducer term and the SNR, confidence and flags each by its rule. Seeded, 
 
 from __future__ import annotations
 
+import itertools
+import math
+
 import numpy as np
 import pytest
 
@@ -350,3 +353,152 @@ def test_unexplained_once_the_other_paths_are_subtracted():
     assert T._unexplained(c[J - h + 1 :], h - 1, D, wf, 0.0, []) == 0.0
     assert T._unexplained(c[: J + h + 1], J, D, wf, 0.0, []) > 0.0
     assert T._unexplained(c[: J + h], J, D, wf, 0.0, []) == 0.0
+
+
+# --- a tail's decay line (_decay, _tail_level) ------------------------------------------
+
+
+def _exp_env(a_db: float, b_db: float, n: int = 3000) -> np.ndarray:
+    return 10.0 ** ((a_db + b_db * np.arange(float(n))) / 20.0)
+
+
+@pytest.mark.parametrize(("look", "sep"), [(100, 900), (0, 801), (37, 837)])
+def test_decay_of_an_exponential_tail_is_its_own_line(look, sep):
+    """An envelope decaying exactly exponentially, ``20 log10 env = A + B t``: the maxima
+    of 8 blocks of ``[q + max(look, 1), q + sep)`` (800 samples: blocks of 100, each at its
+    first sample) lie on ``A + B (t - 50)`` at the blocks' centres ``t``, so the line is
+    ``(A - 50 B, B, inf)`` (no raise needed)."""
+    A, B = 10.0, -0.02
+    a, b, t_end = T._decay(_exp_env(A, B), 500, sep, look)
+    assert b == pytest.approx(B, rel=1e-9)
+    assert a == pytest.approx(A - 50.0 * B, abs=1e-8)
+    assert t_end == math.inf
+
+
+def test_decay_is_raised_over_every_block_maximum():
+    """An echo on the tail: the line keeps the fitted slope and passes over every block's
+    maximum, touching the highest above it."""
+    env = _exp_env(0.0, -0.02)
+    env[850:860] += 0.5  # an echo in the fourth block of [600, 1400)
+    a, b, _ = T._decay(env, 500, 900, 100)
+    edges = np.linspace(600, 1400, 9).astype(int)
+    t = 0.5 * (edges[:-1] + edges[1:])
+    y = 20.0 * np.log10([env[u:v].max() for u, v in itertools.pairwise(edges)])
+    slope, _ = np.polyfit(t, y, 1)
+    assert b == pytest.approx(slope, rel=1e-9)
+    gap = a + b * t - y
+    assert gap.min() == pytest.approx(0.0, abs=1e-9) and gap.min() >= -1e-9
+    assert int(np.argmin(gap)) == 2  # the echo's block (850-860 lies in [800, 900))
+
+
+def test_decay_of_a_rising_tail_is_flat_at_its_maximum_up_to_the_stretch_end():
+    """Echoes late in the stretch (the block maxima rise): ``(max, 0, hi)``, ``hi`` the
+    stretch's end, clipped to the envelope."""
+    env = _exp_env(-20.0, 0.01)
+    y_max = 20.0 * np.log10(env[500 + 100 : 500 + 900].max())
+    assert T._decay(env, 500, 900, 100) == pytest.approx((y_max, 0.0, 1400.0))
+    assert T._decay(env[:1200], 500, 900, 100)[2] == 1200.0
+
+
+def test_decay_needs_64_samples_and_a_tail_in_every_block():
+    """None when the stretch is shorter than 64 samples or a block is all zeros."""
+    env = _exp_env(0.0, -0.02)
+    assert T._decay(env, 500, 164, 100) is not None
+    assert T._decay(env, 500, 163, 100) is None
+    assert T._decay(env[:663], 500, 900, 100) is None  # the envelope ends: 63 samples
+    assert T._decay(env[:664], 500, 900, 100) is not None
+    z = env.copy()
+    z[1300:1400] = 0.0  # the last block of [600, 1400)
+    assert T._decay(z, 500, 900, 100) is None
+
+
+def test_tail_level_is_the_line_in_amplitude_up_to_its_end():
+    """``10^((a + b p) / 20)`` up to ``t_end`` (inclusive), 0 beyond or without a line."""
+    assert T._tail_level(None, 10) == 0.0
+    assert T._tail_level((6.0, -0.5, 100.0), 20) == pytest.approx(10.0 ** (-4.0 / 20.0))
+    assert T._tail_level((6.0, -0.5, 100.0), 100) == pytest.approx(10.0 ** (-44.0 / 20.0))
+    assert T._tail_level((6.0, -0.5, 100.0), 101) == 0.0
+    assert T._tail_level((6.0, 0.0, math.inf), 10**6) == pytest.approx(10.0**0.3)
+
+
+# --- the cluster and its local floor (_cluster_start, _local_floor, _local_maxima) -------
+
+
+def _peaks_env(at, height=1.0, n=1200):
+    env = np.zeros(n)
+    env[list(at)] = height
+    return env
+
+
+@pytest.mark.parametrize(
+    ("look", "cap", "want"),
+    [(100, 600, 850), (149, 600, 850), (150, 600, 700), (150, 300, 700), (150, 299, 850)],
+)
+def test_cluster_start_chains_back_in_gaps_of_at_most_look(look, cap, want):
+    """Peaks at 700, 850, 900 before ``p`` = 1000: chained back through gaps of at most
+    ``look`` (a gap of exactly ``look`` joins), no further back than ``p - cap``
+    (inclusive)."""
+    at = [700, 850, 900, 1000]
+    env = _peaks_env(at)
+    assert T._cluster_start(env, np.array(at), 1000, 0.5, look, cap) == want
+
+
+def test_cluster_start_thresholds_and_breaks():
+    """A peak below ``thr`` is not a link (one at ``thr`` is); a gap above ``look`` just
+    before ``p`` leaves ``p`` alone; ``look`` 0 is ``p``."""
+    at = np.array([700, 850, 900, 1000])
+    env = _peaks_env(at)
+    env[850] = 0.4
+    assert T._cluster_start(env, at, 1000, 0.5, 150, 600) == 900
+    assert T._cluster_start(env, at, 1000, 0.4, 150, 600) == 700
+    assert T._cluster_start(env, at, 1000, 0.5, 99, 600) == 1000
+    assert T._cluster_start(env, at, 1000, 0.5, 100, 600) == 900
+    assert T._cluster_start(env, at, 1000, 0.5, 0, 600) == 1000
+    assert T._cluster_start(env, at, 1000, 2.0, 150, 600) == 1000  # none above thr
+
+
+RAYLEIGH_MEDIAN = math.sqrt(2.0 * math.log(2.0))
+
+
+@pytest.mark.parametrize(
+    ("start", "look", "half_lobe", "n"),
+    [
+        (9000, 100, 5, 256),  # max(2 look, 32 half lobes, 256) = 256
+        (9000, 300, 5, 600),
+        (9000, 100, 20, 640),
+        (9000, 3000, 5, 4096),  # at most 4096
+        (9000, 2047, 5, 4094),
+        (700, 300, 5, 600),
+        (300, 300, 5, 289),  # from sample 0
+    ],
+)
+def test_local_floor_is_the_rayleigh_scale_of_the_stretch_a_lobe_before(start, look, half_lobe, n):
+    """On ``env = 1, 2, 3, ...`` the median of ``env[lo:end]`` is ``(lo + end + 1) / 2``:
+    the window ends ``2 half_lobe + 1`` before ``start`` and is ``n`` long (or reaches
+    sample 0); the Rayleigh scale is the median over ``sqrt(2 ln 2)``."""
+    env = np.arange(1.0, 10001.0)
+    end = start - 2 * half_lobe - 1
+    lo = end - n
+    assert lo >= 0
+    want = 0.5 * (lo + end + 1) / RAYLEIGH_MEDIAN
+    assert T._local_floor(env, start, look, half_lobe) == pytest.approx(want, rel=1e-12)
+
+
+def test_local_floor_needs_16_samples():
+    """0 when the window before the cluster holds fewer than 16 samples."""
+    env = np.arange(1.0, 10001.0)
+    start = 2 * 5 + 1 + 16  # end = 16: the window [0, 16)
+    assert T._local_floor(env, start, 100, 5) == pytest.approx(8.5 / RAYLEIGH_MEDIAN)
+    assert T._local_floor(env, start - 1, 100, 5) == 0.0
+
+
+def test_local_maxima_against_a_loop():
+    """``>=`` the left neighbour and ``>`` the right one, interior samples only: on a
+    plateau the last sample; on random integers (ties) as a loop finds them."""
+    np.testing.assert_array_equal(T._local_maxima(np.array([1.0, 2.0, 2.0, 1.0])), [2])
+    np.testing.assert_array_equal(T._local_maxima(np.array([3.0, 1.0, 3.0])), [])
+    assert len(T._local_maxima(np.array([1.0, 2.0]))) == 0
+    rng = np.random.default_rng(4)
+    x = rng.integers(0, 4, 500).astype(float)
+    want = [i for i in range(1, 499) if x[i] >= x[i - 1] and x[i] > x[i + 1]]
+    np.testing.assert_array_equal(T._local_maxima(x), want)
