@@ -1,0 +1,155 @@
+"""``rangekit.detect.pathfit``: rules of the fit pinned at both sides of their boundaries.
+
+Issue 21's mutation round (helper P2, seeds 101 and 331 of the mutation check). Each test
+states the rule it pins; the expectations are closed forms, numpy/scipy references or
+the truth of a noiseless synthetic arrival, never a value read from the module. About
+three seconds.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from pathfit_signals import received
+
+from rangekit.detect import pathfit as P
+from rangekit.signals.barker import CodedBurst
+
+FS = 192000.0
+
+
+@pytest.fixture(scope="module")
+def model():
+    return P.ResonatorModel.for_burst(CodedBurst(), fs=FS)
+
+
+@pytest.mark.parametrize(
+    ("offset", "applied"),
+    [(0.6, True), (0.95, True), (-0.6, True), (1.05, False), (1.4, False), (-1.4, False)],
+)
+def test_the_summarys_newton_step_in_the_onset_is_taken_only_below_one_sample(
+    model, offset, applied
+):
+    """``_summarize`` moves the first path by one Newton step in the onsets when that
+    step is under one sample (a converged fit's is ~0) and keeps the fitted onset
+    otherwise. A noiseless Q 12 arrival at 100.3 samples, summarized from onsets
+    ``offset`` samples off: under 1 the step lands within 1e-3 samples of the truth
+    (measured 5.2e-4 at 0.95), beyond it the onset stays where the state put it."""
+    t0 = 100.3
+    x = received(12.0, [t0], [1.0], n=model.segment)
+    th = model.theta_start(12.0)
+    st = P._evaluate(x, model, np.array([t0 + offset]), th, True)
+    f = P._summarize(st, x, 0, model, 1e-4, 6.0, 0.25, -math.inf, math.inf, True)
+    lin = float(f.onsets[f.first])
+    if applied:
+        assert abs(lin - t0) < 1e-3
+    else:
+        assert lin == t0 + offset
+
+
+def test_resolution_is_the_half_width_of_the_analytic_autocorrelation(model):
+    """``_resolution``: the first lag at which the model waveform's analytic
+    autocorrelation envelope falls below one half of its value at lag 0, against the
+    waveform's analytic signal by ``scipy.signal.hilbert`` and its circular
+    autocorrelation by numpy, on 120 (Q, f0) pairs (Q 1-30 log-spaced, f0 40 kHz +-10 %;
+    9 of them lie within 0.3 % of one half at the crossing, where a threshold taken from
+    lag 1 instead would move it by one lag)."""
+    from scipy.signal import hilbert
+
+    for q in np.geomspace(1.0, 30.0, 40):
+        for f0 in (36000.0, 40000.0, 44000.0):
+            an = hilbert(model.waveform(q, f0))
+            r = np.abs(np.fft.ifft(np.abs(np.fft.fft(an)) ** 2))
+            want = float(np.flatnonzero(r[: len(r) // 2] < 0.5 * r[0])[0])
+            assert P._resolution(model, model.theta_start(q, f0)) == want, (q, f0)
+
+
+def _series(tab, nt, wc, m, u, first=0):
+    """``exp(-j wc f) sum_{q < nt} (-j f)^q / q! D_{q + first}[t - i]`` with ``u = i + f``
+    (``i = round(u)``), on the ``m``-point grid (numpy; the held fit's shift series)."""
+    i = int(np.rint(u))
+    f = u - i
+    out = np.zeros(m, dtype=np.complex128)
+    for q in range(nt):
+        out += (-1j * f) ** q / math.factorial(q) * tab[q + first, :m]
+    return np.exp(-1j * wc * f) * np.roll(out, i)
+
+
+@pytest.mark.parametrize("q", [3.0, 12.0, 27.0])
+def test_the_shift_tables_series_is_the_inverse_fft_of_the_shifted_spectrum(model, q):
+    """``_shift_tables``: ``tab[q] = IFFT(s (w - wc)^q)`` (``wc`` the spectrum's peak bin),
+    repeated once for ``segment`` samples along the grid; ``nt`` the first order at which
+    the series' term bound ``sum |s| (|w - wc| / 2)^q / q!`` (also times ``|w - wc|`` for
+    the onset row, and of each ``|ds_j|``) is below ``SHIFT_TOL`` of its order-0 sum
+    (computed here); so the series at any fractional onset gives the inverse FFT of the
+    shifted spectrum, waveform and onset derivative rows (and the derivative spectra's),
+    to 6e-15 of each row's peak (measured up to 2.8e-15; the tables themselves to 7e-16 of
+    theirs, measured 3.5e-16)."""
+    th = model.theta_start(q, 40400.0)
+    m, seg = model.n_fft, model.segment
+    s, ds = model.spectrum_t(th, derivs=True)
+    w = 2.0 * np.pi * np.arange(len(s)) / m
+    wc = float(w[int(np.argmax(np.abs(s)))])
+    dw = w - wc
+    bounds = [np.abs(s), np.abs(s) * np.abs(dw), *(np.abs(d) for d in ds)]
+    want_nt = next(
+        k
+        for k in range(1, 61)
+        if all(
+            (b * (np.abs(dw) / 2) ** k / math.factorial(k)).sum() < 1e-14 * b.sum() for b in bounds
+        )
+    )
+    tab, nt, wc_got = P._shift_tables(model, th)
+    tabd, ntd, _ = P._shift_tables(model, th, derivs=True)
+    assert (nt, ntd, wc_got) == (want_nt, want_nt, wc)
+    assert tab.shape == (nt + 1, m + seg) and tabd.shape == (2, nt, m + seg)
+    for k in range(nt + 1):
+        want = np.fft.ifft(np.concatenate([s * dw**k, np.zeros(m - len(s))]))
+        np.testing.assert_allclose(tab[k, :m], want, rtol=0, atol=7e-16 * np.abs(want).max())
+    np.testing.assert_array_equal(tab[:, m:], tab[:, :seg])
+    np.testing.assert_array_equal(tabd[:, :, m:], tabd[:, :, :seg])
+    pad = np.zeros(m - len(s))
+    for u in (0.0, 0.5, -0.5, 0.37, 41.7, -12.49):
+        ph = np.exp(-1j * w * u)
+        row0 = _series(tab, nt, wc, m, u)
+        row1 = -1j * wc * row0 - 1j * _series(tab, nt, wc, m, u, first=1)
+        wants = [
+            (row0, np.fft.ifft(np.concatenate([s * ph, pad]))),
+            (row1, np.fft.ifft(np.concatenate([-1j * w * s * ph, pad]))),
+        ]
+        for j in range(2):
+            wants.append(
+                (_series(tabd[j], nt, wc, m, u), np.fft.ifft(np.concatenate([ds[j] * ph, pad])))
+            )
+        for got, want in wants:
+            np.testing.assert_allclose(got, want, rtol=0, atol=6e-15 * np.abs(want).max())
+
+
+def test_lm_step_is_not_solved_at_the_damping_limit():
+    """``_lm_step_np`` solves the damped system while ``lam < 1e8``: at exactly 1e8 the
+    step is zero (no step: the caller stops), just below it the damped step
+    ``(J^T J + lam diag(J^T J))^-1 g`` (numpy's solve). A Jacobian with a zero column has
+    no Gauss-Newton gain (nan: singular) and a zero step in that parameter (its damping
+    weight set to 1)."""
+    rng = np.random.default_rng(331)
+    jac = rng.standard_normal((60, 3))
+    r = rng.standard_normal(60)
+    lim = np.full(3, np.inf)
+    gn, lam, step = P._lm_step_np(jac, r, 3, 1e8, lim)
+    assert lam == 1e8 and np.array_equal(step, np.zeros(3))
+    assert gn == pytest.approx(float(jac.T @ r @ np.linalg.solve(jac.T @ jac, jac.T @ r)))
+    lam0 = 0.99e8
+    jtj = jac.T @ jac
+    want = np.linalg.solve(jtj + lam0 * np.diag(np.diag(jtj)), jac.T @ r)
+    _, lam, step = P._lm_step_np(jac, r, 3, lam0, lim)
+    assert lam == lam0 and np.any(step != 0.0)
+    np.testing.assert_allclose(step, want, rtol=1e-12)
+    jac[:, 1] = 0.0
+    gn, lam, step = P._lm_step_np(jac, r, 3, 0.5, lim)
+    jtj = jac.T @ jac
+    d = np.diag(jtj).copy()
+    d[1] = 1.0
+    assert math.isnan(gn) and lam == 0.5 and step[1] == 0.0
+    np.testing.assert_allclose(step, np.linalg.solve(jtj + 0.5 * np.diag(d), jac.T @ r), rtol=1e-12)
