@@ -30,6 +30,13 @@ import rangekit.detect.changepoint as cp
 RNG_SEED = 20261203
 
 
+@pytest.fixture(autouse=True, scope="module")
+def _compiled_helpers():
+    """The helpers as numba compiles them (as the detector runs them, and whatever ran
+    before in the session), so the measured rounding is the compiled one."""
+    K._compiled("all_finite")
+
+
 def _spd(rng, p, cond=1e3):
     q, _ = np.linalg.qr(rng.standard_normal((p, p)))
     ev = np.geomspace(1.0, 1.0 / cond, p) * rng.uniform(0.5, 2.0)
@@ -650,3 +657,98 @@ def test_fit_tau_residual_equals_least_squares():
                 worst = max(worst, abs(r - ref) / (seg @ seg))
                 np.testing.assert_allclose(coef, ref_coef, rtol=1e-6, atol=1e-9)
     assert worst < 4e-15  # measured 1.3e-15
+
+
+# ---------------------------------------------------------------- anchors, combine
+
+
+def test_anchor_kernel_equals_changepoint_on_random_beeps():
+    from rangekit.signals import Beep
+
+    rng = np.random.default_rng(RNG_SEED + 40)
+    n_rising = np.zeros(8, dtype=int)
+    for _ in range(12):
+        k_b = int(rng.integers(2, 6))
+        beep = Beep(n_bursts=k_b, spacing=int(rng.choice([2205, 5000, 3001])))
+        hop, n_win = int(rng.choice([32, 64])), 128
+        n_e = 6000
+        e = rng.exponential(1.0, n_e) * 10.0 ** rng.uniform(-6, 2)
+        sp = beep.spacing_s * FS / hop
+        starts = []
+        for _ in range(3):
+            f0 = int(rng.integers(50, n_e - 400))
+            starts.append(f0)
+            for k in range(k_b):
+                if rng.random() < 0.8:  # some bursts missing
+                    a = int(f0 + k * sp)
+                    e[a : a + 13] *= float(rng.choice([1.5, 3.0, 10.0, 1000.0]))
+        e[rng.integers(0, n_e, 20)] = 0.0  # empty frames: a plateau of no energy
+        cs = np.concatenate(([0.0], np.cumsum(e)))
+        c = np.concatenate(
+            [
+                rng.integers(-200, n_e * hop + 200, 40),
+                np.array([(s + int(k * sp)) * hop for s in starts for k in range(k_b)]),
+            ]
+        ).astype(np.int64)
+        kw = dict(hop=hop, n_win=n_win, beep=beep, fs=FS)
+        got = cp._anchors_compiled(c, cs, n_e, **kw)
+        ref = [cp._anchor(int(v), e, spacing=beep.spacing_s * FS, cs=cs, **kw) for v in c]
+        assert got == ref
+        for _, r in ref:
+            n_rising[r] += 1
+    # from no rising burst place to all five: measured [75, 180, 176, 108, 75, 10]
+    assert (n_rising[:5] > 37).all() and n_rising[5] > 4
+
+
+def _combine_case(rng):
+    from rangekit.detect.refine import EdgeFit
+
+    k_b = int(rng.integers(2, 8))
+    spacing = float(rng.choice([5000.0, 22050.0, 44100.0]))
+    ppm = rng.uniform(-300, 300)
+    sg = np.exp(rng.uniform(np.log(1e-4), np.log(3.0), k_b))
+    on = 1000.0 + np.arange(k_b) * spacing * (1 + ppm * 1e-6) + sg * rng.standard_normal(k_b)
+    for k in rng.choice(k_b, size=int(rng.integers(0, 3)), replace=False):
+        on[k] += float(rng.choice([-1, 1]) * rng.uniform(1, 20))
+    for k in rng.choice(k_b, size=int(rng.integers(0, 2)), replace=False):
+        sg[k] = float(rng.choice([np.nan, np.inf, 2e6, 1e-5]))  # failed or clamped sigmas
+    snr = rng.integers(0, 40, k_b).astype(float)
+    fst = rng.uniform(10, 1000, k_b)
+    fits = [
+        EdgeFit(onset=float(on[k]), sigma=float(sg[k]), snr_db=float(snr[k]), amplitude=1.0,
+                f_stat=float(fst[k]))
+        for k in range(k_b)
+    ]  # fmt: skip
+    for k in rng.choice(k_b, size=int(rng.integers(0, 2)), replace=False):
+        fits[k] = None
+    return fits, spacing, float(rng.choice([0.5, 1.0, 2.0])), int(rng.integers(1, 4))
+
+
+def test_combine_kernel_equals_changepoint_in_every_output():
+    """Onset, sigma, median SNR, confidence, burst count, strength and the kept bursts'
+    onsets, with failed (NaN, infinite), huge and tiny sigmas, scales 0.5-2."""
+    rng = np.random.default_rng(RNG_SEED + 41)
+    counts = {"none": 0, "partial": 0, "full": 0}
+    for _ in range(300):
+        fits, spacing, scale, mb = _combine_case(rng)
+        k_b = len(fits)
+        ref = cp._combine(fits, [False] * k_b, spacing=spacing, scale=scale, min_bursts=mb)
+        have = np.array([f is not None for f in fits])
+        on = np.array([f.onset if f else np.nan for f in fits])
+        sg = np.array([f.sigma if f else np.inf for f in fits])
+        snr = np.array([f.snr_db if f else 0.0 for f in fits])
+        fst = np.array([f.f_stat if f else 0.0 for f in fits])
+        res, row = np.zeros(6), np.zeros(k_b)
+        ok = K._combine_py(on, sg, snr, fst, have, spacing, scale, mb, cp.MODEL_SIGMA, res, row)
+        assert ok == (ref is not None)
+        if ref is None:
+            counts["none"] += 1
+            continue
+        t0, s0, snr_db, conf, burst_on, _, strength = ref
+        # the same operations; compiled, sigma's last bit differs (measured 1.1e-16)
+        assert (res[0], res[2], res[3], res[5]) == (t0, snr_db, conf, strength)
+        assert abs(res[1] - s0) <= 3e-16 * s0
+        assert res[4] == int(np.sum(np.isfinite(burst_on)))
+        np.testing.assert_array_equal(row, burst_on)
+        counts["full" if conf == 1.0 else "partial"] += 1
+    assert min(counts.values()) > 29, counts  # measured: none 58, partial 176, full 66
