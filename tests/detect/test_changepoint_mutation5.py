@@ -22,11 +22,18 @@ import scipy.ndimage
 
 from rangekit.detect import _edge_kernels as K
 from rangekit.detect import changepoint as cp
+from rangekit.detect._kernels import band_energy
 from rangekit.detect.condition import bandlimit
 from rangekit.signals import Beep
+from rangekit.signals.beep import beep_continuous
 from rangekit.types import Arrivals
 
 FS = 44100.0
+
+
+def _burst(n: int, at: float, amp: float, beep: Beep) -> np.ndarray:
+    """``beep`` (peak ``amp``) starting at sample ``at`` of ``n`` (continuous time)."""
+    return amp / 0.9 * beep_continuous((np.arange(n) - at) / FS, beep=beep)
 
 
 def _rate(n: int, k: int, delta: float) -> float:
@@ -476,3 +483,125 @@ def test_out_of_band_reads_the_middle_65536_samples(compiled):
     short = np.where(np.arange(30000) < 29000, tone[:30000], 50 * hum[:30000])
     cond = cp._Conditioner(short, cp.beep_taps(beep, FS), None, compiled)
     assert cp._out_of_band(short, cond)
+
+
+def _shift_flag(amps, lone_at, lone_amp, row, sigma, seed=0):
+    """``_shift_flags`` (its ``ambiguous_first_path`` bit, 4, or 0) of one arrival of
+    the default beep with burst onsets ``row`` (as the arrival reports them) and sigma
+    ``sigma``, on a recording of the beep's bursts at 20000 + k 5000 with peaks ``amps``
+    and a lone burst of peak ``lone_amp`` at ``lone_at`` (none: None), noise 0.001."""
+    beep, one = Beep(), Beep(n_bursts=1)
+    t0, s = 20000, beep.spacing
+    n = t0 + 5 * s + 3000
+    x = 0.001 * np.random.default_rng(seed).standard_normal(n)
+    for k, a in enumerate(amps):
+        x += _burst(n, t0 + k * s, a, one)
+    if lone_at is not None:
+        x += _burst(n, lone_at, lone_amp, one)
+    e = band_energy(x, fs=FS, f_hz=np.array([beep.f_hz]), n_win=128, hop=32).ravel()
+    cs = np.concatenate(([0.0], np.cumsum(e)))
+    cond = cp._conditioner(x, fs=FS, beep=beep, condition=True)
+    arr = Arrivals(
+        np.array([float(row[0])]), FS, np.array([sigma]), np.array([30.0]), np.array([1.0]),
+        np.array([row], dtype=float), "changepoint",
+    )  # fmt: skip
+    out = cp._shift_flags(arr, cond, e, cs, fs=FS, beep=beep, n_win=128, hop=32, bg=True)
+    return int(out.flags[0])
+
+
+T0, S = 20000, 5000
+ROW = [T0, T0 + S, T0 + 2 * S, T0 + 3 * S]
+
+
+def test_the_places_beyond_are_one_spacing_from_the_outermost_bursts_found():
+    """The place before the beep is one spacing before its first burst's onset, the place
+    after one spacing after its last (each from that burst's own onset): with burst 1
+    reported 10 samples late, a lone burst at 15000 or 40000 still flags, and none
+    does not (the places from burst 1 would be 10 samples off, beyond the tolerance 4)."""
+    row = [T0, T0 + S + 10, T0 + 2 * S, T0 + 3 * S]
+    assert _shift_flag([0.5] * 4, T0 - S, 0.5, row, 0.25) == 4
+    assert _shift_flag([0.5] * 4, T0 + 4 * S, 0.5, row, 0.25) == 4
+    assert _shift_flag([0.5] * 4, None, 0.0, row, 0.25) == 0
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_a_shifted_beep_is_weighed_against_the_burst_at_the_other_end(seed):
+    """The lone burst one spacing before the beep is weighed against the beep's last
+    burst (the one a beep shifted earlier would drop), the one after against its first:
+    a lone burst of 0.2 does not flag against a last (first) burst of 1.0 while the
+    burst next to it is 0.15, and flags when the two are swapped (measured, 5 seeds)."""
+    assert _shift_flag([0.5, 0.5, 0.15, 1.0], T0 - S, 0.2, ROW, 0.25, seed) == 0
+    assert _shift_flag([0.5, 0.5, 1.0, 0.15], T0 - S, 0.2, ROW, 0.25, seed) == 4
+    assert _shift_flag([1.0, 0.15, 0.5, 0.5], T0 + 4 * S, 0.2, ROW, 0.25, seed) == 0
+    assert _shift_flag([0.15, 1.0, 0.5, 0.5], T0 + 4 * S, 0.2, ROW, 0.25, seed) == 4
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_the_shift_tolerance_caps_sigma_at_2_samples(seed):
+    """The tolerance about a place is ``_allowed_scatter`` one spacing on with the
+    arrival's sigma capped at 2 samples (44.1 kHz): sigma 3 gives ceil(2 + 8 + 1) = 11,
+    so a lone burst 11 samples after the place flags and one 12 samples after does not
+    (measured: the statistic peaks at the lone burst's integer onset)."""
+    assert math.ceil(cp._allowed_scatter(1.0, 2.0, 1, 5000.0)) == 11
+    assert _shift_flag([0.5] * 4, T0 - S + 11, 0.5, ROW, 3.0, seed) == 4
+    assert _shift_flag([0.5] * 4, T0 - S + 12, 0.5, ROW, 3.0, seed) == 0
+    assert _shift_flag([0.5] * 4, T0 + 4 * S + 11, 0.5, ROW, 3.0, seed) == 4
+    assert _shift_flag([0.5] * 4, T0 + 4 * S + 12, 0.5, ROW, 3.0, seed) == 0
+
+
+def _retry_case():
+    beep = Beep()
+    n = 60000
+    x = 0.001 * np.random.default_rng(0).standard_normal(n) + _burst(n, 20000, 0.5, beep)
+    n_win, hop, e, _, _ = cp._candidates(
+        x, fs=FS, beep=beep, win_s=cp.WIN_S, hop_s=cp.HOP_S, threshold_db=6.0, rise_db=10.0
+    )
+    cond = cp._conditioner(x, fs=FS, beep=beep, condition=True)
+    kw = {"fs": FS, "beep": beep, "n_win": n_win, "hop": hop, "background": True,
+          "min_bursts": 3, "quiet": 0.0, "oob": False}  # fmt: skip
+    return cond, e, kw
+
+
+def test_a_re_anchored_edge_where_a_found_beeps_later_burst_lies_is_not_retried():
+    """``_beep_row`` of an anchor 150 samples before the beep's burst 1 (25000): the
+    joint edge lies at its window's late end, so it is re-anchored on it (24998). With
+    nothing found that retry finds bursts 1-3 as a beep at 25000 (3 of 4 bursts); with
+    the beep's onset 20000 found (one spacing before the edge) or 10000 (three), the
+    edge is that beep's later burst: no row; 5000 (four spacings) is no burst of a beep
+    of four: the retry runs."""
+    cond, e, kw = _retry_case()
+    assert cp._fit_beep(cond, 24850, **{k: kw[k] for k in ("fs", "beep", "n_win", "hop",
+                        "background", "min_bursts")})[2] == 24998  # fmt: skip
+    for found_at, row in ((None, True), (20000.0, False), (10000.0, False), (5000.0, True),
+                          (20130.0, False), (19790.0, False)):  # fmt: skip
+        found = cp._Found()
+        if found_at is not None:
+            found.add(found_at)
+        r = cp._beep_row(cond, 24850, e, found, **kw)
+        assert (r is not None) == row, found_at
+        if row:
+            assert abs(r[0] - 25000) < 0.1 and r[3] == 0.75  # measured 0.007
+    found = cp._Found()
+    assert cp._beep_row(cond, 24850, e, found, retry=False, **kw) is None
+
+
+def test_the_raw_statistic_of_a_clipped_stretch_ignores_a_constant_and_a_slope():
+    """On a stretch with clipped samples ``_burst_stat`` uses the raw samples' statistic
+    with a constant and a slope fitted (clipped samples left out): adding DC of 0.3 and a
+    ramp to the recording (same clip mask) leaves it unchanged (measured 3e-10 of its
+    peak; without the constant and slope it moves by its whole size)."""
+    beep = Beep()
+    n = 30000
+    t = np.arange(n)
+    x = _burst(n, 20000.3, 1.0, Beep(n_bursts=1))
+    x = np.clip(x + 0.01 * np.random.default_rng(0).standard_normal(n), -0.8, 0.8)
+    mask = cp.clip_mask(x)
+    assert mask.sum() > 100
+    taps = cp.beep_taps(beep, FS)
+    for bg in (True, False):
+        args = (20000, -240, 401)
+        f0 = cp._burst_stat(cp._Conditioner(x, taps, mask), *args, fs=FS, beep=beep, background=bg)
+        y = x + 0.3 + 0.5 * (t - 20000) / n
+        f1 = cp._burst_stat(cp._Conditioner(y, taps, mask), *args, fs=FS, beep=beep, background=bg)
+        assert int(np.argmax(f0[2])) == 240 and f0[2].max() > 1e4
+        assert np.max(np.abs(f1[2] - f0[2])) < 1e-9 * f0[2].max()
