@@ -19,8 +19,16 @@ import math
 
 import numpy as np
 import pytest
+from scipy.signal import welch
 
 import rangekit.detect.template as T
+from rangekit.detect.matched import (
+    DEFAULT_BLOCK,
+    interp_peak,
+    weighting_response,
+    welch_spectra,
+)
+from rangekit.signals.probe import linear_sweep
 
 FS = 44100.0
 
@@ -502,3 +510,229 @@ def test_local_maxima_against_a_loop():
     x = rng.integers(0, 4, 500).astype(float)
     want = [i for i in range(1, 499) if x[i] >= x[i - 1] and x[i] > x[i + 1]]
     np.testing.assert_array_equal(T._local_maxima(x), want)
+
+
+# --- the filter: template PSD, bandwidth, shares, half lobe, reach (_base, _weighted) ----
+
+
+def _probe(f0, f1, dur, fs=FS, band=None):
+    p = linear_sweep(f0, f1, dur, fs=fs)
+    if band is not None:  # a chosen band (what band_hz() returns), e.g. on FFT bins
+        p.__dict__["_band"] = band
+    return p
+
+
+@pytest.mark.parametrize(
+    ("fs", "nperseg"), [(44100.0, 1024), (8000.0, 256), (2000.0, 64), (1000.0, 64), (96000.0, 2048)]
+)
+def test_noise_segment_is_a_power_of_two_near_fs_over_40_hz(fs, nperseg):
+    """``nperseg = 2^max(6, round(log2(fs / 40 Hz)))`` (about 40 Hz resolution, at least
+    64), and the template's PSD is scipy's Welch estimate with it (Hann, half overlap, the
+    segment cut to the template)."""
+    p = _probe(0.05 * fs, 0.3 * fs, 0.05, fs=fs)
+    base = T._base(p, fs, DEFAULT_BLOCK)
+    assert base.nperseg == nperseg
+    h = p.at_rate(fs)
+    nper = min(nperseg, len(h))
+    _, S2 = welch(h, fs=fs, nperseg=nper, nfft=nperseg, window="hann", noverlap=nper // 2)
+    np.testing.assert_allclose(base.template_psd, S2, rtol=1e-12, atol=1e-300)
+    assert base.band_fs == 0.5 * fs
+    np.testing.assert_array_equal(base.template, h)
+
+
+def test_a_short_templates_psd_uses_a_segment_its_length():
+    """A 10 ms template at 48 kHz (480 samples, under the 1024 of nperseg)."""
+    fs = 48000.0
+    p = _probe(2000.0, 8000.0, 0.01, fs=fs)
+    base = T._base(p, fs, DEFAULT_BLOCK)
+    h = p.at_rate(fs)
+    assert len(h) == 480 and base.nperseg == 1024
+    _, S2 = welch(h, fs=fs, nperseg=480, nfft=1024, window="hann", noverlap=240)
+    np.testing.assert_allclose(base.template_psd, S2, rtol=1e-12, atol=1e-300)
+
+
+@pytest.mark.parametrize(
+    ("band", "taps_band"),
+    [
+        ((500.0, 20000.0), (500.0, 20000.0)),  # from 500 Hz: band-passed
+        ((499.0, 20000.0), None),  # below, and high enough: no FIR
+        ((100.0, 19844.0), (0.0, 19844.0)),  # below 0.9 Nyquist: low-passed
+        ((100.0, 0.9 * 22050.0), None),
+        ((600.0, 21900.0), (600.0, 0.98 * 22050.0)),  # the top at most 0.98 Nyquist
+    ],
+)
+def test_band_limiting_fir_by_the_probes_band(band, taps_band):
+    """Band-passed from :data:`_MIN_HIGHPASS_HZ` (500 Hz) up, low-passed when the band ends
+    below 0.9 of the Nyquist frequency, nothing otherwise; the band's top is clipped at
+    0.98 of it."""
+    from rangekit.detect.condition import bandpass_taps
+
+    p = _probe(1000.0, 15000.0, 0.05, band=band)
+    base = T._base(p, FS, DEFAULT_BLOCK)
+    assert base.band == (band[0], min(band[1], 0.98 * 22050.0))
+    if taps_band is None:
+        assert base.bp_taps is None
+    else:
+        np.testing.assert_array_equal(base.bp_taps, bandpass_taps(FS, *taps_band))
+
+
+def _reference_filter_terms(p, fs, taps):
+    """fc, beta (cycles per sample) and the 8 sub-band shares of ``|S|^2 |H|``: scipy's
+    Welch PSD of the template times the FIR's zero-phase response in closed form."""
+    base = T._base(p, fs, DEFAULT_BLOCK)
+    h = p.at_rate(fs)
+    nperseg = base.nperseg
+    nper = min(nperseg, len(h))
+    _, S2 = welch(h, fs=fs, nperseg=nper, nfft=nperseg, window="hann", noverlap=nper // 2)
+    f = np.fft.rfftfreq(nperseg)
+    if taps is not None:
+        k = np.arange(len(taps)) - (len(taps) - 1) // 2
+        S2 = S2 * np.abs(np.cos(2 * np.pi * np.outer(f, k)) @ taps)
+    fc = float(f @ S2 / S2.sum())
+    beta = math.sqrt(float(((f - fc) ** 2) @ S2 / S2.sum()))
+    lo, hi = base.band
+    edges = lo + (min(hi, 0.5 * fs) - lo) * np.arange(9) / 8.0
+    fh = f * fs
+    sh = np.array([S2[(fh >= a) & (fh < b)].sum() for a, b in itertools.pairwise(edges)])
+    return fc, beta, sh / sh.sum()
+
+
+def _reference_interp_rms(sr):
+    m = len(sr) // 2
+    f = np.fft.fftfreq(len(sr))
+    errs = []
+    for k in range(16):
+        e = np.abs(np.fft.ifft(np.fft.fft(sr) * np.exp(-2j * np.pi * f * k / 16)))
+        i = int(np.argmax(e))
+        errs.append(i + interp_peak(e, i)[0] - (m + k / 16))
+    return float(np.sqrt(np.mean(np.square(errs))))
+
+
+PROBES = [(17000.0, 20000.0, 0.1), (20.0, 20000.0, 0.05), (2000.0, 6000.0, 0.02)]
+
+
+@pytest.mark.parametrize(("f0", "f1", "dur"), PROBES)
+def test_unweighted_filter_against_its_definitions(f0, f1, dur):
+    """The plain filter: its self response the matched filter's cut to ``+- (look +
+    256)``; RMS bandwidth and frequency, sub-band shares, interpolation RMS, half lobe
+    (the first lag where ``|R|`` falls to a quarter, at least 2), coherent reach (a
+    quarter carrier period and a sample where the real self response has no rival
+    cycle), each from its definition."""
+    from rangekit.detect._coherent import coherent_interp_rms, real_side_ratio
+
+    p = _probe(f0, f1, dur)
+    look = 300
+    wf = T._unweighted(p, FS, DEFAULT_BLOCK, look)
+    assert wf.taps is None and wf.reach == 0
+    sr = T._base(p, FS, DEFAULT_BLOCK).mf.self_response
+    mid, w = len(sr) // 2, look + 256
+    np.testing.assert_array_equal(wf.self_resp, sr[mid - w : mid + w + 1])
+    fc, beta, shares = _reference_filter_terms(p, FS, None)
+    assert wf.beta == pytest.approx(beta, rel=1e-9)
+    assert wf.f_rms == pytest.approx(math.hypot(fc, beta), rel=1e-9)
+    np.testing.assert_allclose(wf.shares, shares, rtol=1e-9, atol=1e-15)
+    assert wf.interp_rms == pytest.approx(max(_reference_interp_rms(wf.self_resp), 1e-6), rel=1e-9)
+    env = np.abs(wf.self_resp[w:])
+    k = int(np.flatnonzero(env <= 0.25 * env[0])[0])
+    assert wf.half_lobe == max(2, k)
+    wide = real_side_ratio(wf.self_resp, max(2 * wf.half_lobe, 8)) <= 0.5
+    assert wide is (f0 < 100.0)  # only the 20 Hz-20 kHz sweep is timed coherently
+    if wide:
+        assert wf.coherent_reach == math.ceil(0.25 / fc) + 1
+        assert wf.coherent_rms == coherent_interp_rms(wf.self_resp, wf.coherent_reach)
+    else:
+        assert wf.coherent_reach == 0 and wf.coherent_rms == 0.0
+
+
+def test_self_response_is_zero_padded_beyond_the_filters_own():
+    """A 20 ms template's self response is 3841 lags; cut to ``+- (2000 + 256)`` it is
+    zero beyond its own ``+- 1920``."""
+    p = _probe(2000.0, 6000.0, 0.02)
+    sr = T._base(p, FS, DEFAULT_BLOCK).mf.self_response
+    mid = len(sr) // 2
+    wf = T._unweighted(p, FS, DEFAULT_BLOCK, 2000)
+    w = 2256
+    assert len(wf.self_resp) == 2 * w + 1 and mid < w
+    np.testing.assert_array_equal(wf.self_resp[w - mid : w + mid + 1], sr)
+    assert not np.any(wf.self_resp[: w - mid]) and not np.any(wf.self_resp[w + mid + 1 :])
+
+
+def test_shares_count_each_bin_in_one_half_open_sub_band():
+    """A band on FFT bins (3-9 kHz at 48 kHz, bins of 46.875 Hz: sub-band edges every 16
+    bins): each bin in ``[lo, hi)`` of one sub-band, the band's top bin in none; the shares
+    sum to 1."""
+    fs = 48000.0
+    p = _probe(2000.0, 10000.0, 0.05, fs=fs, band=(3000.0, 9000.0))
+    wf = T._unweighted(p, fs, DEFAULT_BLOCK, 300)
+    base = T._base(p, fs, DEFAULT_BLOCK)
+    S2 = base.template_psd
+    sh = np.array([S2[64 + 16 * b : 64 + 16 * (b + 1)].sum() for b in range(8)])
+    np.testing.assert_allclose(wf.shares, sh / sh.sum(), rtol=1e-12)
+    assert wf.shares.sum() == pytest.approx(1.0, abs=1e-12)
+    np.testing.assert_allclose(T._subband_edges(base.band, fs), 3000.0 + 750.0 * np.arange(9))
+    # the band clipped at the Nyquist frequency
+    np.testing.assert_allclose(T._subband_edges((3000.0, 30000.0), fs), np.linspace(3000, 24000, 9))
+
+
+def _coloured_spectra(p, seed=0):
+    """Noise rising 40 dB towards low frequencies, as a recording's spectrum."""
+    base = T._base(p, FS, DEFAULT_BLOCK)
+    x = np.random.default_rng(seed).standard_normal(40000)
+    x = x + 30.0 * np.cumsum(np.random.default_rng(seed + 1).standard_normal(40000)) * 1e-2
+    return base, welch_spectra(x, fs=FS, nperseg=base.nperseg)
+
+
+@pytest.mark.parametrize(("f0", "f1", "dur"), PROBES)
+def test_weighted_filter_bandwidth_and_shares_through_the_fir(f0, f1, dur):
+    """Weighted by coloured noise ("ml"): the FIR is the band-limiting one convolved with
+    the weights' zero-phase FIR; the RMS bandwidth and shares are those of ``|S|^2`` times
+    the FIR's response in closed form (``sum taps cos(2 pi f (k - reach))``) on the
+    weights' grid."""
+    from rangekit.detect.matched import zero_phase_taps
+
+    p = _probe(f0, f1, dur)
+    base, sp = _coloured_spectra(p)
+    W = weighting_response("ml", sp, template_psd=base.template_psd, band_hz=base.band)
+    wf = T._weighted(p, FS, DEFAULT_BLOCK, W, 300)
+    taps = zero_phase_taps(W, 2 * (len(W) - 1))
+    if base.bp_taps is not None:
+        taps = np.convolve(base.bp_taps, taps)
+    np.testing.assert_array_equal(wf.taps, taps)
+    assert wf.reach == (len(taps) - 1) // 2
+    fc, beta, shares = _reference_filter_terms(p, FS, taps)
+    assert wf.beta == pytest.approx(beta, rel=1e-9)
+    assert wf.f_rms == pytest.approx(math.hypot(fc, beta), rel=1e-9)
+    np.testing.assert_allclose(wf.shares, shares, rtol=1e-9, atol=1e-15)
+
+
+@pytest.mark.parametrize("n", [4096, 600, 61])
+def test_taps_response_is_the_zero_phase_cosine_sum(n):
+    """``_taps_response`` on ``rfftfreq(n)``: ``sum taps[k] cos(2 pi f (k - reach))``, for
+    ``n`` above and below the FIR's length (then read off a finer grid); 1 without FIR."""
+    rng = np.random.default_rng(7)
+    half = rng.standard_normal(150)
+    taps = np.concatenate([half[::-1], [2.0], half])  # even: zero phase about its middle
+    wf = T._Filter(None, taps, np.ones(3, complex), 0.1, 0.0, 2, np.ones(8) / 8, 0, 0.0, 0.1)
+    f = np.fft.rfftfreq(n)
+    k = np.arange(len(taps)) - 150
+    want = np.cos(2 * np.pi * np.outer(f, k)) @ taps
+    np.testing.assert_allclose(T._taps_response(wf, n), want, atol=1e-9)
+    none = T._Filter(None, None, np.ones(3, complex), 0.1, 0.0, 2, np.ones(8) / 8, 0, 0.0, 0.1)
+    np.testing.assert_array_equal(T._taps_response(none, n), np.ones(n // 2 + 1))
+
+
+def test_template_spectrum_and_shifted():
+    """The template's rfft (cached), and ``_shifted``: an integer delay is a roll, a
+    fractional one a band-limited tone's delay (to 1e-12)."""
+    p = _probe(17000.0, 20000.0, 0.1)
+    base = T._base(p, FS, DEFAULT_BLOCK)
+    np.testing.assert_allclose(T._template_spectrum(base), np.fft.rfft(base.template), atol=1e-9)
+    assert T._template_spectrum(base) is T._template_spectrum(base)
+    rng = np.random.default_rng(2)
+    r = rng.standard_normal(64) + 1j * rng.standard_normal(64)
+    np.testing.assert_allclose(T._shifted(r, 3.0), np.roll(r, 3), atol=1e-12)
+    np.testing.assert_allclose(T._shifted(r, -5.0), np.roll(r, -5), atol=1e-12)
+    n = np.arange(64.0)
+    tone = np.exp(2j * np.pi * 5 / 64 * n)
+    np.testing.assert_allclose(T._shifted(tone, 0.3), np.exp(2j * np.pi * 5 / 64 * (n - 0.3)),
+                               atol=1e-12)  # fmt: skip
