@@ -201,3 +201,51 @@ def test_a_held_fit_compiled_equals_the_numpy_one_in_every_field(
     np.testing.assert_array_equal(a.theta_lin, th)
     np.testing.assert_allclose(a.info, b.info, rtol=0, atol=1e-14 * np.abs(b.info).max())
     np.testing.assert_allclose(a.gain, b.gain, rtol=0, atol=1e-13)
+
+
+@pytest.fixture(scope="module")
+def two_paths(model):
+    """A noiseless direct path at 100.25 samples (amplitude 0.5) and a reflection at 160.5
+    (1.0), Q 12, evaluated at the truth with ``theta`` free (the summary's input)."""
+    th = model.theta_start(12.0)
+    x = received(12.0, [100.25, 160.5], [0.5, 1.0], n=model.segment)
+    st = P._evaluate(x, model, np.array([100.25, 160.5]), th, True)
+    return x, st
+
+
+def _first(model, x, st, *, sigma=1e-3, k_noise=6.0, rel=0.25, lo=-math.inf, hi=math.inf):
+    f = P._summarize(st, x, 0, model, sigma, k_noise, rel, lo, hi, True)
+    return None if f is None else math.floor(float(f.onsets[f.first]))
+
+
+def test_the_first_path_rule_at_its_thresholds(model, two_paths):
+    """``_summarize``'s first path: an earlier path replaces the strongest when its
+    amplitude is at least ``rel_threshold`` times the strongest's and its SNR
+    (``|alpha| sqrt(E) / sigma``) at least ``k_noise``; each at exactly the threshold
+    and one float above it."""
+    x, st = two_paths
+    amp = np.hypot(st.a[0::2], st.a[1::2])
+    assert amp[0] / amp[1] == pytest.approx(0.5, rel=1e-6)
+    rel = float(amp[0] / amp[1])
+    while rel * amp[1] > amp[0]:
+        rel = math.nextafter(rel, 0.0)
+    above = rel
+    while above * amp[1] <= amp[0]:
+        above = math.nextafter(above, math.inf)
+    assert _first(model, x, st, rel=rel) == 100
+    assert _first(model, x, st, rel=above) == 160
+    snr0 = float(amp[0] * math.sqrt(model.energy(12.0, model.f0_hz)) / 1e-3)
+    assert _first(model, x, st, k_noise=snr0) == 100
+    assert _first(model, x, st, k_noise=math.nextafter(snr0, math.inf)) == 160
+
+
+def test_the_first_path_lies_in_lo_minus_one_to_hi(model, two_paths):
+    """Paths count from ``lo - 1`` (inclusive) to ``hi`` (exclusive): the direct path at
+    100.25 is in for ``lo`` 101.25 and out one float above; ``hi`` at 100.25 leaves no
+    path (None), one float above it only the direct path."""
+    x, st = two_paths
+    assert _first(model, x, st, lo=101.25) == 100
+    assert _first(model, x, st, lo=math.nextafter(101.25, math.inf)) == 160
+    assert _first(model, x, st, hi=100.25) is None
+    assert _first(model, x, st, hi=math.nextafter(100.25, math.inf)) == 100
+    assert _first(model, x, st, lo=160.5, hi=161.0) == 160
