@@ -213,12 +213,15 @@ def test_long_series_go_to_the_kernel_with_the_same_parameters():
     for _ in range(40):
         a = int(rng.integers(0, n - 50))
         e[a : a + 30] *= 10 ** rng.uniform(0.5, 3.0)
+        e[a + 4 : a + 30] *= 10 ** rng.uniform(1.8, 2.5)  # a second step in the run
     fl = rng.uniform(0.5, 2.0) * np.ones(n)
     got = cp._change_points(
         e, n_win=128, hop=hop, threshold_db=7.0, rise_db=9.0, floor=fl, lookback=2
     )
     ref = K._change_points_py(e, fl, 4 + 2, 8, 10**0.7, 10**0.9, 4)
     assert len(ref) > 40 and got.tolist() == ref.tolist()
+    # the steps count: a run's first window as long as the series finds 66, not 87 (measured)
+    assert len(K._change_points_py(e, fl, 4 + 2, 8, 10**0.7, 10**0.9, n)) < len(ref) - 10
     short = cp._change_points(
         e[: n - 1], n_win=128, hop=hop, threshold_db=7.0, rise_db=9.0, floor=fl[: n - 1],
         lookback=2,
@@ -744,3 +747,67 @@ def test_resolve_aliases_keeps_the_strongest_selection_sharing_no_burst():
         pairwise = _aliases_reference(rows, tol, max_set=0)
         assert exhaustive != pairwise
         assert got == (exhaustive if whole else pairwise), size
+
+
+def test_combine_equals_the_kernels_loop_in_every_output():
+    """``_combine`` against ``_edge_kernels._combine_py`` (its loop form) in every output:
+    onset, sigma (model term ``MODEL_SIGMA`` x fs / 44100 at 44.1 and 96 kHz), the median
+    SNR of the kept bursts, confidence, kept bursts and summed strength, on 300 seeded sets
+    with failed fits (infinite and NaN sigma), sigmas below the 1e-3 clip, drift,
+    outliers and missing bursts; the flags are those of the kept bursts:
+    ``inconsistent_bursts`` when fewer than all are kept, ``clipped`` when a kept one
+    was, ``low_snr`` below a median of 10 dB."""
+    from rangekit.detect.refine import EdgeFit
+
+    K._compiled("beeps")
+    rng = np.random.default_rng(21)
+    seen = {"none": 0, "partial": 0, "low": 0, "clip": 0}
+    for _ in range(300):
+        k_b = int(rng.integers(2, 7))
+        spacing = float(rng.choice([5000.0, 22050.0]))
+        scale = float(rng.choice([1.0, 96000.0 / 44100.0]))
+        drift = rng.uniform(-250e-6, 250e-6) * spacing
+        sg = np.exp(rng.uniform(np.log(1e-4), np.log(3.0), k_b))
+        sg[rng.random(k_b) < 0.1] = np.inf
+        sg[rng.random(k_b) < 0.05] = np.nan
+        on = (
+            1000.0
+            + np.arange(k_b) * (spacing + drift)
+            + np.nan_to_num(sg, nan=1, posinf=1) * rng.standard_normal(k_b)
+        )
+        on[rng.random(k_b) < 0.2] += rng.choice([-1, 1]) * rng.uniform(2, 30)
+        snr = rng.uniform(3, 30, k_b)
+        fst = rng.uniform(20, 500, k_b)
+        have = rng.random(k_b) > 0.15
+        fits = [EdgeFit(onset=float(on[k]), sigma=float(sg[k]), snr_db=float(snr[k]),
+                        amplitude=1.0, f_stat=float(fst[k])) if have[k] else None
+                for k in range(k_b)]  # fmt: skip
+        clipped = list(rng.random(k_b) < 0.2)
+        mb = int(rng.integers(1, k_b + 1))
+        got = cp._combine(fits, clipped, spacing=spacing, scale=scale, min_bursts=mb)
+        res, row = np.zeros(6), np.zeros(k_b)
+        sg_in = np.where(have, sg, np.inf)
+        ok = K._combine_py(np.where(have, on, np.nan), sg_in, snr, fst, have, spacing, scale,
+                           mb, 1.0, res, row)  # fmt: skip
+        assert (got is None) == (not ok)
+        if got is None:
+            seen["none"] += 1
+            continue
+        t0, s0, med, conf, burst_row, flags, strength = got
+        assert t0 == pytest.approx(res[0], abs=1e-9) and s0 == pytest.approx(res[1], rel=1e-9)
+        assert med == pytest.approx(res[2], abs=1e-12) and conf == res[3]
+        assert strength == pytest.approx(res[5], rel=1e-12)
+        np.testing.assert_array_equal(burst_row, row)
+        kept = np.isfinite(row)
+        want = 0
+        if kept.sum() < k_b:
+            want |= cp.flag_bit("inconsistent_bursts")
+            seen["partial"] += 1
+        if any(c for c, k in zip(clipped, kept, strict=True) if k):
+            want |= cp.flag_bit("clipped")
+            seen["clip"] += 1
+        if float(np.median(snr[kept])) < 10.0:
+            want |= cp.flag_bit("low_snr")
+            seen["low"] += 1
+        assert flags == want
+    assert min(seen.values()) > 15, seen  # measured: each case 30 times or more
