@@ -269,6 +269,14 @@ def test_anchor_equals_the_kernels_on_random_band_energies(n_bursts):
         cs = np.concatenate(([0.0], np.cumsum(e)))
         comp = cp._anchors_compiled(c, cs, n, hop=hop, n_win=n_win, beep=beep, fs=FS)
         assert comp == got
+    # a one-burst beep: its change point is its start, one rising place
+    one = Beep(n_bursts=1)
+    c = rng.integers(0, 200 * hop, 10)
+    cs = np.concatenate(([0.0], np.cumsum(e)))
+    want = [(int(v), 1) for v in c]
+    kw = {"hop": hop, "n_win": n_win, "beep": one, "fs": FS}
+    assert [cp._anchor(int(v), e, spacing=one.spacing_s * FS, **kw) for v in c] == want
+    assert cp._anchors_compiled(c, cs, len(e), **kw) == want
 
 
 def test_levels_and_rise_of_a_burst_place():
@@ -573,12 +581,15 @@ def test_a_re_anchored_edge_where_a_found_beeps_later_burst_lies_is_not_retried(
     nothing found that retry finds bursts 1-3 as a beep at 25000 (3 of 4 bursts); with
     the beep's onset 20000 found (one spacing before the edge) or 10000 (three), the
     edge is that beep's later burst: no row; 5000 (four spacings) is no burst of a beep
-    of four: the retry runs."""
+    of four: the retry runs. The later-burst window is the retry's search window less a
+    taper (22 samples) at both ends, one spacing back: [19780, 20136]; 19790 and 20130
+    lie in it, 19760 and 20160 do not."""
     cond, e, kw = _retry_case()
     assert cp._fit_beep(cond, 24850, **{k: kw[k] for k in ("fs", "beep", "n_win", "hop",
                         "background", "min_bursts")})[2] == 24998  # fmt: skip
     for found_at, row in ((None, True), (20000.0, False), (10000.0, False), (5000.0, True),
-                          (20130.0, False), (19790.0, False)):  # fmt: skip
+                          (20130.0, False), (19790.0, False), (19760.0, True),
+                          (20160.0, True)):  # fmt: skip
         found = cp._Found()
         if found_at is not None:
             found.add(found_at)
