@@ -847,3 +847,143 @@ def test_low_snr_at_either_side_of_twice_the_detection_threshold():
         assert len(b) == 1 and abs(b.snr_db[0] - thr_db - off) < 0.05  # measured < 0.01
         got.append(bool(b.flags[0] & 2))
     assert got == [True, False]
+
+
+# --- the near-miss test (_near_miss) -------------------------------------------------------
+
+
+def _R2(t):
+    """A self response with a side lobe half as high 30 lags before its peak."""
+    return R_an(t) + 0.5 * R_an(t + 30.0)
+
+
+def _wf2() -> T._Filter:
+    R = _R2(np.arange(-M, M + 1.0))
+    return T._Filter(None, None, R, 0.03, 0.0, K, np.ones(8) / 8, 0, 0.0, F0)
+
+
+def _near(c, lo, paths, thr, wf=None):
+    return T._near_miss(c, np.abs(c), lo, paths, _wf2() if wf is None else wf, thr)
+
+
+def test_the_paths_own_side_lobes_are_no_near_miss():
+    """A side lobe 30 lags before the chosen path, at half its height, above ``thr /
+    AMBIGUOUS_MARGIN``: subtracted with the path's response (at its sub-sample offset),
+    nothing is left."""
+    c = _R2(L - J - D)
+    assert not _near(c, J - 100, [(J, D), (J, D)], 0.6)
+    assert _near(c, J - 100, [(J, D), (J, D)], 0.6, wf=_wf())  # a filter without the lobe
+
+
+@pytest.mark.parametrize(("factor", "want"), [(1.01, True), (0.99, False)])
+def test_an_earlier_path_nearly_clearing_the_threshold(factor, want):
+    """An earlier path (amplitude ``b``, 80 lags before) is a near miss when it reaches
+    ``thr / AMBIGUOUS_MARGIN``: ``thr`` set 1 % either side of ``1.5 b``."""
+    b = 0.2
+    c = _R2(L - J - D) + _path(b, J - 80)
+    thr = 1.5 * b / factor
+    assert _near(c, J - 100, [(J, D), (J, D)], thr) is want
+
+
+def test_near_miss_subtracts_the_strongest_path_too():
+    """The chosen path and one twice as strong 15 lags later, each with its side lobe:
+    both are subtracted, each at its own offset (the strongest's lobe lies 15 lags before
+    the chosen path); with only the chosen path's response taken out the strongest's lobe
+    is a near miss."""
+    c = _R2(L - J - D) + 2.0 * _R2(L - J - 15 - 0.6)
+    assert not _near(c, J - 100, [(J, D), (J + 15, 0.6)], 0.6)
+    assert _near(c, J - 100, [(J, D), (J, D)], 0.6)
+
+
+def test_near_miss_window():
+    """The earlier peaks are sought in ``[max(lo, 1), j - half_lobe)``: none when that is
+    under one sample, and an earlier peak below ``thr / 1.5`` is none (False, not a near
+    miss); a path at sample 1 is looked at, one at sample 0 is not."""
+    c = _R2(L - J - D)
+    assert not _near(c, J - K, [(J, D), (J, D)], 0.6)
+    assert not _near(c, J - K - 1, [(J, D), (J, D)], 0.6)
+    assert not _near(c, J - 100, [(J, D), (J, D)], 10.0)  # nothing near the threshold
+    for at, want in ((1, True), (0, False)):
+        x = _R2(L - 150 - D) + _path(0.3, at)
+        assert _near(x, 0, [(150, D), (150, D)], 0.3) is want, at
+
+
+# --- arrivals from an envelope (_select) ---------------------------------------------------
+
+
+def _sel(env, *, sep=900, look=100, k_rec=5.0, expected=None):
+    wf = _wf(half_lobe=5)
+    peaks = T._local_maxima(env)
+    peaks = peaks[env[peaks] > k_rec * 0.85]
+    return T._select(env, peaks, noise=0.85, k_rec=k_rec, k_noise=3.0, rel_threshold=0.3,
+                     sep=sep, look=look, wf=wf, expected=expected)  # fmt: skip
+
+
+def _spikes(at_heights, n=8000):
+    env = np.full(n, 2.0)  # a flat background (no local maxima): Rayleigh scale 1.70
+    for at, h in at_heights:
+        env[at] = h
+    return env
+
+
+@pytest.mark.parametrize(("gap", "n_arrivals"), [(899, 1), (900, 2)])
+def test_a_peak_within_the_separation_belongs_to_the_stronger(gap, n_arrivals):
+    env = _spikes([(2000, 100.0), (2000 + gap, 50.0)])
+    got = _sel(env)
+    assert [p for p, _, _, _ in got] == [2000, 2000 + gap][:n_arrivals]
+    assert all(not tail for *_, tail in got)
+
+
+@pytest.mark.parametrize(("factor", "accepted"), [(1.01, True), (0.99, False)])
+def test_an_arrival_clears_k_rec_times_its_local_floor(factor, accepted):
+    """The local floor before a lone peak is the background's Rayleigh scale (``2 /
+    sqrt(2 ln 2)``, above ``noise`` 0.85): the peak is an arrival from ``k_rec`` times it
+    (1 % either side)."""
+    floor = 2.0 / RAYLEIGH_MEDIAN
+    env = _spikes([(3000, factor * 5.0 * floor)])
+    got = _sel(env)
+    if accepted:
+        assert len(got) == 1 and got[0][0] == 3000 and got[0][1] == 3000
+        assert got[0][2] == pytest.approx(floor, rel=1e-12) and not got[0][3]
+    else:
+        assert got == []
+        assert _sel(env, expected=1) == [(3000, 3000, pytest.approx(floor), True)]
+
+
+def test_expected_keeps_the_strongest_and_fills_with_tail_peaks():
+    """Three arrivals and a peak below its floor: ``expected=2`` the two strongest,
+    ``expected=4`` all four, the last flagged a tail (weakest of the tails first)."""
+    floor = 2.0 / RAYLEIGH_MEDIAN
+    env = _spikes([(1000, 50.0), (3000, 80.0), (5000, 30.0), (7000, 4.5 * floor)])
+    assert [p for p, *_ in _sel(env)] == [3000, 1000, 5000]
+    assert [p for p, *_ in _sel(env, expected=2)] == [3000, 1000]
+    got = _sel(env, expected=4)
+    assert [(p, tail) for p, _, _, tail in got] == [
+        (3000, False), (1000, False), (5000, False), (7000, True)
+    ]  # fmt: skip
+    assert [p for p, *_ in _sel(env, expected=1)] == [3000]
+
+
+def test_an_arrivals_cluster_reaches_back_in_gaps_of_at_most_look_within_half_sep():
+    """A peak 950 samples after an arrival, preceded by a chain of peaks every 90 samples:
+    its cluster starts at the earliest chained peak no more than ``sep / 2`` (450) back
+    (2540) when ``look`` is 90, at the last gap's end (2900) when it is 89."""
+    chain = [(2000 + 90 * i, 40.0) for i in range(1, 11)]  # every 90 samples to 2900
+    env = _spikes([(2000, 100.0), *chain, (2950, 45.0)])
+    for look, start in ((90, 2540), (89, 2900)):
+        got = _sel(env, sep=900, look=look)
+        assert [(p, s, tail) for p, s, _, tail in got] == [
+            (2000, 2000, False),
+            (2950, start, False),
+        ]
+
+
+@pytest.mark.parametrize(("factor", "accepted"), [(1.01, True), (0.99, False)])
+def test_a_peak_under_an_arrivals_extrapolated_tail_is_its_echo(factor, accepted):
+    """An arrival with an echo late in its stretch (``[q + look, q + sep)``: the tail's
+    upper envelope is flat at the echo's height up to ``q + sep``): a peak at ``q + sep``
+    is a new arrival only above TAIL_MARGIN (2) times that (1 % either side)."""
+    echo = 10.0
+    env = _spikes([(2000, 100.0), (2000 + 860, echo), (2900, factor * 2.0 * echo)])
+    got = _sel(env, sep=900, look=30)
+    assert [p for p, *_ in got] == ([2000, 2900] if accepted else [2000])
