@@ -863,3 +863,64 @@ def test_signal_keeps_long_float32_recordings_and_bounds_samples_at_1e100():
         cp._signal(np.array([np.nextafter(1e100, np.inf), 0.0]))
     with pytest.raises(cp.V.InvalidParameterError):
         cp._signal(np.zeros((2, 5)))
+
+
+@pytest.mark.parametrize(
+    ("beep", "fs", "lo", "hi", "tw"),
+    [
+        # the default beep: f +- 2 edge bandwidths (4009 Hz), a 1500 Hz transition
+        (Beep(), FS, 16000 - 4009.09, 16000 + 4009.09, 1500.0),
+        # a low beep: the lower edge at 0.1 f, the transition half of it
+        (Beep(f_hz=2000.0), FS, 200.0, 2000 + 4009.09, 100.0),
+        # a beep near Nyquist: the upper edge at 0.98 Nyquist, the transition what is left
+        (Beep(f_hz=19000.0, fs=44100.0), FS, 19000 - 4009.09, 0.98 * 22050, 441.0),
+        (Beep(f_hz=19000.0, fs=44100.0), 40000.0, 19000 - 4009.09, 0.98 * 20000, 400.0),
+    ],
+)
+def test_beep_taps_band_edges_and_transition(beep, fs, lo, hi, tw):
+    """``beep_taps``: ``bandpass_taps`` flat over ``f +- 2`` edge bandwidths, the lower
+    edge at least 0.1 f, the upper at most 0.98 of Nyquist, with a transition of 1500 Hz,
+    at most half the lower edge and at most what lies above the upper (at least 0.01
+    Nyquist)."""
+    want = cp.bandpass_taps(fs, lo, hi, transition_hz=tw)
+    got = cp.beep_taps(beep, fs)
+    assert len(got) == len(want)
+    np.testing.assert_allclose(got, want, rtol=0, atol=2e-6)  # edges rounded to 0.01 Hz
+
+
+def test_the_change_points_look_back_4_ms_in_frames_rounded_up(monkeypatch):
+    """``_candidates`` separates each frame from the recent level it must rise over by
+    ``ceil(LOOKBACK_S fs / hop)`` frames more (4 ms: 5.5 -> 6 frames of 32 samples, 11.03
+    -> 12 of 16 at 44.1 kHz)."""
+    seen = []
+    real = cp._change_points
+
+    def spy(e, **kw):
+        seen.append(kw["lookback"])
+        return real(e, **kw)
+
+    monkeypatch.setattr(cp, "_change_points", spy)
+    x = 1e-3 * np.random.default_rng(0).standard_normal(5000)
+    for hop_s in (32 / FS, 16 / FS):
+        cp._candidates(x, fs=FS, beep=Beep(), win_s=cp.WIN_S, hop_s=hop_s, threshold_db=6.0,
+                       rise_db=10.0)  # fmt: skip
+    assert seen == [6, 12]
+
+
+@pytest.mark.parametrize(("fs", "tol"), [(FS, 4.0), (96000.0, 2 * 96000 / 44100 + 2)])
+def test_groups_share_a_burst_within_2_samples_at_44100_hz_plus_2(fs, tol, monkeypatch):
+    """``detect_changepoint`` resolves aliases with a burst-sharing tolerance of ``2 fs /
+    44100 + 2`` samples (4 at 44.1 kHz)."""
+    seen = []
+    real = cp._resolve_aliases
+
+    def spy(rows, *, tol):
+        seen.append(tol)
+        return real(rows, tol=tol)
+
+    monkeypatch.setattr(cp, "_resolve_aliases", spy)
+    beep = Beep(fs=fs)
+    n = 3 * beep.duration_samples
+    x = 1e-3 * np.random.default_rng(0).standard_normal(n)  # called with no group too
+    cp.detect_changepoint(x, fs=fs, beep=beep)
+    assert seen == [pytest.approx(tol, abs=1e-12)]
