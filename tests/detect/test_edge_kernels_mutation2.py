@@ -752,3 +752,41 @@ def test_combine_kernel_equals_changepoint_in_every_output():
         np.testing.assert_array_equal(row, burst_on)
         counts["full" if conf == 1.0 else "partial"] += 1
     assert min(counts.values()) > 29, counts  # measured: none 58, partial 176, full 66
+
+
+def _flags(e, *, rise=1.0, rise_last=1.0, reverb=2.0, quiet=0.5, guard=0.0):
+    # onset frame 100 (t0 - n_win = 100 hops), near 20: far frames 60-79, near 80-99
+    return K._onset_flags_py(
+        e, 100 * 32 + 128.0, 32, 128, 20, 4, rise, quiet, reverb, 3, guard, rise_last, 0.0, 1
+    )
+
+
+def test_onset_flags_at_their_exact_ties_and_guards():
+    """changepoint._before_onset_flags' rules, each strict: the near run's mean over the
+    far level (``> rise``), the last frames over the level (``> rise_last``), the far
+    level over the quiet level (``> reverb_ratio``); none where the far level or the
+    quiet level is 0. Powers of two, so each tie is exact."""
+    e = np.ones(200)
+    assert _flags(e) == 0  # all three exactly at their thresholds
+    assert _flags(e, rise=0.5, rise_last=2.0) == 1
+    assert _flags(e, rise=2.0, rise_last=0.5) == 1
+    assert _flags(e, reverb=1.0) == 2
+    assert _flags(e, reverb=0.5, quiet=0.0) == 0  # no quiet level: no reverberation flag
+    z = e.copy()
+    z[60:80] = 0.0  # no far level (and no level before the last frames)
+    assert _flags(z, rise=1.0, rise_last=0.5) == 0
+    z[60] = 1.0  # a far level of 1/20: the near run's 1 is 20 times it
+    assert _flags(z, rise=16.0, rise_last=64.0) == 1
+    assert _flags(z, rise=32.0, rise_last=64.0) == 0
+    # the last frames: frames 98-100 (n_last 3) over the level; guard 32 moves them to 97-99
+    w = e.copy()
+    w[100] = 4.0
+    assert _flags(w, rise=64.0, rise_last=2.0) == 1
+    assert _flags(w, rise=64.0, rise_last=2.0, guard=32.0) == 0
+    w[97] = 4.0
+    assert _flags(w, rise=64.0, rise_last=2.0, guard=32.0) == 1  # any of the frames
+    # too early for the far frames (they would start before frame 0): nothing
+    for frame, want in ((39, 0), (40, 3)):
+        t0 = frame * 32 + 128.0
+        got = K._onset_flags_py(e, t0, 32, 128, 20, 4, 0.5, 0.5, 1.0, 3, 0.0, 0.5, 0.0, 1)
+        assert got == want
