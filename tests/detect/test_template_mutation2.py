@@ -987,3 +987,100 @@ def test_a_peak_under_an_arrivals_extrapolated_tail_is_its_echo(factor, accepted
     env = _spikes([(2000, 100.0), (2000 + 860, echo), (2900, factor * 2.0 * echo)])
     got = _sel(env, sep=900, look=30)
     assert [p for p, *_ in got] == ([2000, 2900] if accepted else [2000])
+
+
+# --- dc_or_lowband's band edges and ratio (_lowband) --------------------------------------
+
+
+def _flat_spectra(changes: dict[int, float]):
+    from rangekit.detect.matched import Spectra
+
+    f = np.linspace(0.0, 22050.0, 513)
+    N = np.ones(513)
+    for k, v in changes.items():
+        N[k] = v
+    return Spectra(f, N, N.copy(), 1024), (float(f[100]), float(f[200]))
+
+
+@pytest.mark.parametrize("edge", [100, 200])
+def test_lowband_counts_the_bins_at_the_bands_edges_as_in_band(edge):
+    """The band's bins are ``lo <= f <= hi``: a bin 1000x up at either edge is in-band
+    power (no flag); one bin past the edge it is out of band (flagged)."""
+    sp, band = _flat_spectra({edge: 1000.0})
+    assert T._lowband(sp, band) is False
+    outside = edge - 1 if edge == 100 else edge + 1
+    sp, band = _flat_spectra({outside: 1000.0})
+    assert T._lowband(sp, band) is True
+
+
+@pytest.mark.parametrize(("factor", "flagged"), [(1.01, True), (0.99, False)])
+def test_lowband_needs_the_excess_to_exceed_the_bands_power(factor, flagged):
+    """Ten bins below the band at ``10 med + s``: their excess ``10 s`` against the band's
+    101 bins of power 1, 1 % either side."""
+    s = factor * 101.0 / 10.0
+    sp, band = _flat_spectra({k: 10.0 + s for k in range(10)})
+    assert T._lowband(sp, band) is flagged
+
+
+def test_lowband_without_bins_in_the_band():
+    """A band between two bins holds none: no flag, whatever lies outside."""
+    sp, _ = _flat_spectra({k: 1e6 for k in range(10)})
+    f = sp.f_hz
+    assert T._lowband(sp, (float(f[100]) + 1.0, float(f[100]) + 2.0)) is False
+    assert T._lowband(sp, (float(f[100]), float(f[100]))) is True  # one bin
+
+
+# --- sub-band coverage on FFT-bin edges (_coverage) ----------------------------------------
+
+FS48 = 48000.0
+
+
+def _bin_probe():
+    """A 20 ms sweep at 48 kHz (960 samples: bins of 50 Hz) with its band set to 3-9 kHz:
+    sub-band edges every 750 Hz, on bins."""
+    return _probe(2000.0, 10000.0, 0.02, fs=FS48, band=(3000.0, 9000.0))
+
+
+def _coverage_of(boost_bins, j=5000, n=12000, seed=0):
+    """Coverage of an arrival at ``j``: the template with the bins of sub-band 3 (105-119)
+    removed and those of ``boost_bins`` 3x up, in white noise 1e-3."""
+    p = _bin_probe()
+    base = T._base(p, FS48, DEFAULT_BLOCK)
+    h = base.template
+    S = np.fft.rfft(h)
+    S0 = S.copy()
+    S[105:120] = 0.0
+    for k in boost_bins:
+        S[k] = 3.0 * S0[k]
+    x = 1e-3 * np.random.default_rng(seed).standard_normal(n)
+    seg = np.fft.irfft(S, len(h))
+    lo, hi = max(j, 0), min(j + len(h), n)
+    x[lo:hi] += seg[lo - j : hi - j]
+    sp = welch_spectra(x, fs=FS48, nperseg=base.nperseg)
+    W = weighting_response("ml", sp, template_psd=base.template_psd, band_hz=base.band)
+    wf = T._weighted(p, FS48, DEFAULT_BLOCK, W, 300)
+    return T._coverage(wf.condition(x), j, base, wf, sp), wf
+
+
+def test_coverage_reads_each_bin_in_one_half_open_sub_band():
+    """Sub-band 3 (bins 105-119) removed: its share is missing (coverage 0.77, measured:
+    ``1 - share_3`` of the tested share). Bin 120, on the edge between sub-bands 3 and 4,
+    belongs to sub-band 4 only: 3x up, the coverage is the same (to 1e-6, measured 6e-9);
+    bin 105 (sub-band 3's own lower edge) or 119 3x up makes sub-band 3 present again."""
+    c0, wf = _coverage_of([])
+    assert 0.6 < c0 < 1.0 - 0.5 * wf.shares[3]  # measured 0.768, share_3 0.224
+    assert _coverage_of([120])[0] == pytest.approx(c0, abs=1e-6)
+    assert _coverage_of([105])[0] == 1.0
+    assert _coverage_of([119])[0] == 1.0
+
+
+def test_coverage_needs_the_whole_template_inside_the_recording():
+    """Judged for onsets ``0 <= j`` with ``j + len(template) <= len(x)``; 1 (undecided)
+    otherwise."""
+    n = 12000
+    c0, wf = _coverage_of([], j=n - 960, n=n)
+    assert c0 < 1.0 - 0.5 * wf.shares[3]  # measured 0.765
+    assert _coverage_of([], j=n - 959, n=n)[0] == 1.0
+    c0, wf = _coverage_of([], j=0, n=n)
+    assert c0 < 1.0 - 0.5 * wf.shares[3]
+    assert _coverage_of([], j=-1, n=n)[0] == 1.0
