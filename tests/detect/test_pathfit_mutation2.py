@@ -355,3 +355,62 @@ def test_pool_fits_equals_its_documented_rule_on_random_groups():
             assert g.onset == pytest.approx(f.onset + f.gain @ (mean - f.theta_lin), abs=1e-9)
             assert g.sigma**2 == pytest.approx(f.var_given + f.gain @ cov @ f.gain, rel=1e-9)
     assert 93 <= pooled_n <= 280, pooled_n  # measured 185
+
+
+def _model_signal(model, u, theta, a):
+    """``sum_k Re{(a_re,k - j a_im,k) s_a(n - u_k)}``: the modelled segment at fixed
+    amplitudes (the basis columns are the real and imaginary parts of each waveform)."""
+    s = model.spectrum_t(theta)
+    ph = np.exp(np.multiply.outer(np.asarray(u, float), model._mjw))
+    rows = np.fft.ifft(np.concatenate([s * ph, np.zeros((len(u), model.n_fft - len(s)))], 1))
+    return (a[0::2, None] * rows.real + a[1::2, None] * rows.imag).sum(axis=0)
+
+
+@pytest.mark.parametrize("with_theta", [True, False])
+def test_evaluate_is_least_squares_with_the_models_jacobian(model, with_theta):
+    """``_evaluate`` (numpy path): the amplitudes are the least-squares solution
+    (``numpy.linalg.lstsq``) of the segment on the paths' in-phase and quadrature
+    columns, the residual and cost follow, and the Jacobian's columns are the modelled
+    segment's derivatives at those amplitudes, by each onset and (summed over the paths)
+    by each ``theta`` (central differences, within 6e-9 of the column's largest value;
+    measured 2.9e-9); two coincident paths (a singular Gram matrix) give lstsq's
+    minimum-norm amplitudes (``pinv``)."""
+    rng = np.random.default_rng(331_3)
+    th = model.theta_start(9.0, 40300.0)
+    n = model.segment
+    x = received(9.0, [90.3, 170.8], [1.0, 0.4], n=n) + 0.01 * rng.standard_normal(n)
+    u = np.array([90.1, 171.2])
+    st = P._evaluate(x, model, u, th, with_theta)
+    a_ref, *_ = np.linalg.lstsq(st.basis, x, rcond=None)
+    np.testing.assert_allclose(st.a, a_ref, rtol=1e-9)
+    full = _model_signal(model, u, th, st.a)[:n]
+    np.testing.assert_allclose(st.basis @ st.a, full, atol=1e-12)
+    np.testing.assert_allclose(st.r, x - full, atol=1e-12)
+    assert st.cost == pytest.approx(float(np.sum((x - full) ** 2)), rel=1e-12)
+    cols = []
+    for i in range(2):
+        h = 1e-4
+        du = np.zeros(2)
+        du[i] = h
+        cols.append(
+            (_model_signal(model, u + du, th, st.a) - _model_signal(model, u - du, th, st.a))[:n]
+            / (2 * h)
+        )
+    if with_theta:
+        for i, h in enumerate((1e-5, 1e-2)):
+            dt = np.zeros(2)
+            dt[i] = h
+            cols.append(
+                (_model_signal(model, u, th + dt, st.a) - _model_signal(model, u, th - dt, st.a))[
+                    :n
+                ]
+                / (2 * h)
+            )
+    assert st.jac.shape == (n, len(cols))
+    for j, col in enumerate(cols):
+        assert np.abs(st.jac[:, j] - col).max() < 6e-9 * np.abs(col).max(), j
+    two = P._evaluate(x, model, np.array([90.3, 90.3]), th, with_theta)
+    basis = two.basis
+    a_min, *_ = np.linalg.lstsq(basis, x, rcond=None)
+    np.testing.assert_allclose(basis @ two.a, basis @ a_min, atol=1e-9)
+    assert two.cost == pytest.approx(float(np.sum((x - basis @ a_min) ** 2)), rel=1e-9)
