@@ -1084,3 +1084,21 @@ def test_coverage_needs_the_whole_template_inside_the_recording():
     c0, wf = _coverage_of([], j=0, n=n)
     assert c0 < 1.0 - 0.5 * wf.shares[3]
     assert _coverage_of([], j=-1, n=n)[0] == 1.0
+
+
+def test_expected_separation_is_half_an_emissions_share_of_a_short_recording():
+    """With ``expected`` the separation is ``max(duration, min(0.1 s, len / fs / (2
+    expected)))``: four 10 ms pings 120 ms apart in 0.6 s, so 75 ms. An echo 60 ms after
+    the first (0.8 of it) belongs to it, and the four pings are the arrivals; with a
+    separation of 50 ms given it is an arrival and the weakest ping (0.5) is left out."""
+    from probecorpus import place
+
+    p = _probe(2000.0, 6000.0, 0.01)
+    n = int(0.6 * FS)
+    ons = [(0.05 + 0.12 * i) * FS + 0.3 for i in range(4)]
+    x = place(p.samples, [*ons, ons[0] + 0.06 * FS], [1.0, 1.0, 1.0, 0.5, 0.8], n)
+    x += 1e-3 * np.random.default_rng(1).standard_normal(n)
+    a = T.detect_template(x, fs=FS, probe=p, expected=4)
+    np.testing.assert_allclose(a.onset, ons, atol=0.01)  # measured 1e-3
+    b = T.detect_template(x, fs=FS, probe=p, expected=4, min_separation_s=0.05)
+    np.testing.assert_allclose(b.onset, sorted([*ons[:3], ons[0] + 0.06 * FS]), atol=0.01)
