@@ -87,13 +87,18 @@ TESTS: dict[str, tuple[str, ...]] = {
         "tests/detect/test_combine_drift.py",
         "tests/detect/test_changepoint_mutation3.py",
         "tests/detect/test_changepoint_mutation4.py",
+        "tests/detect/test_changepoint_mutation5.py",
     ),
     "rangekit/detect/_kernels.py": ("tests/detect/test_kernels.py",),
-    "rangekit/detect/condition.py": ("tests/detect/test_condition.py",),
+    "rangekit/detect/condition.py": (
+        "tests/detect/test_condition.py",
+        "tests/detect/test_condition_mutation.py",
+    ),
     "rangekit/detect/matched.py": (
         "tests/detect/test_matched_fast.py",
         "tests/detect/test_matched.py",
         "tests/detect/test_mutation_matched.py",
+        "tests/detect/test_matched_mutation2.py",
     ),
     "rangekit/detect/xcorr.py": (
         "tests/detect/test_xcorr_mutation.py",
@@ -124,6 +129,7 @@ TESTS: dict[str, tuple[str, ...]] = {
     "rangekit/detect/pathfit.py": (
         "tests/detect/test_pathfit.py",
         "tests/detect/test_pathfit_mutation.py",
+        "tests/detect/test_pathfit_mutation2.py",
     ),
     "rangekit/detect/fitted.py": (
         "tests/detect/test_stagger.py",
@@ -131,7 +137,10 @@ TESTS: dict[str, tuple[str, ...]] = {
         "tests/ranging/test_tof_mutation.py",
         "tests/detect/test_fitted_mutation.py",
     ),
-    "rangekit/detect/_pathfit_kernels.py": ("tests/detect/test_pathfit_kernels.py",),
+    "rangekit/detect/_pathfit_kernels.py": (
+        "tests/detect/test_pathfit_kernels.py",
+        "tests/detect/test_pathfit_kernels_mutation.py",
+    ),
     "rangekit/detect/template.py": (
         "tests/detect/test_template.py",
         "tests/detect/test_template_coherent.py",
@@ -140,11 +149,13 @@ TESTS: dict[str, tuple[str, ...]] = {
         "tests/detect/test_template_ultrasonic.py",
         "tests/detect/test_template_wrong.py",
         "tests/detect/test_template_mutation.py",
+        "tests/detect/test_template_mutation2.py",
     ),
     "rangekit/detect/_edge_kernels.py": (
         "tests/detect/test_edge_kernels.py",
         "tests/detect/test_combine_drift.py",
         "tests/detect/test_edge_kernels_mutation.py",
+        "tests/detect/test_edge_kernels_mutation2.py",
     ),
     "rangekit/detect/__init__.py": ("tests/detect/test_front.py",),
     "rangekit/detect/files.py": (
@@ -160,6 +171,7 @@ TESTS: dict[str, tuple[str, ...]] = {
     "rangekit/detect/_coherent.py": (
         "tests/detect/test_template_coherent.py",
         "tests/detect/test_coherent_mutation.py",
+        "tests/detect/test_coherent_mutation2.py",
     ),
     "rangekit/ranging/tof.py": (
         "tests/ranging/test_ultrasonic.py",
