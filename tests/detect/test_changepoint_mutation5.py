@@ -498,27 +498,33 @@ def test_out_of_band_reads_the_middle_65536_samples(compiled):
     assert cp._out_of_band(short, cond)
 
 
-def _shift_flag(amps, lone_at, lone_amp, row, sigma, seed=0):
+def _shift_flag(amps, lone_at, lone_amp, row, sigma, seed=0, fs=FS):
     """``_shift_flags`` (its ``ambiguous_first_path`` bit, 4, or 0) of one arrival of
-    the default beep with burst onsets ``row`` (as the arrival reports them) and sigma
-    ``sigma``, on a recording of the beep's bursts at 20000 + k 5000 with peaks ``amps``
-    and a lone burst of peak ``lone_amp`` at ``lone_at`` (none: None), noise 0.001."""
-    beep, one = Beep(), Beep(n_bursts=1)
+    the default beep (at rate ``fs``) with burst onsets ``row`` (as the arrival reports
+    them) and sigma ``sigma``, on a recording of the beep's bursts at 20000 + k 5000 with
+    peaks ``amps`` and a lone burst of peak ``lone_amp`` at ``lone_at`` (none: None),
+    noise 0.001."""
+    beep, one = Beep(fs=fs), Beep(n_bursts=1, fs=fs)
     t0, s = 20000, beep.spacing
     n = t0 + 5 * s + 3000
     x = 0.001 * np.random.default_rng(seed).standard_normal(n)
+
+    def burst(at, amp, b):
+        return amp / 0.9 * beep_continuous((np.arange(n) - at) / fs, beep=b)
+
     for k, a in enumerate(amps):
-        x += _burst(n, t0 + k * s, a, one)
+        x += burst(t0 + k * s, a, one)
     if lone_at is not None:
-        x += _burst(n, lone_at, lone_amp, one)
-    e = band_energy(x, fs=FS, f_hz=np.array([beep.f_hz]), n_win=128, hop=32).ravel()
+        x += burst(lone_at, lone_amp, one)
+    n_win, hop = cp._stft_params(fs, 128 / 44100, 32 / 44100)
+    e = band_energy(x, fs=fs, f_hz=np.array([beep.f_hz]), n_win=n_win, hop=hop).ravel()
     cs = np.concatenate(([0.0], np.cumsum(e)))
-    cond = cp._conditioner(x, fs=FS, beep=beep, condition=True)
+    cond = cp._conditioner(x, fs=fs, beep=beep, condition=True)
     arr = Arrivals(
-        np.array([float(row[0])]), FS, np.array([sigma]), np.array([30.0]), np.array([1.0]),
+        np.array([float(row[0])]), fs, np.array([sigma]), np.array([30.0]), np.array([1.0]),
         np.array([row], dtype=float), "changepoint",
     )  # fmt: skip
-    out = cp._shift_flags(arr, cond, e, cs, fs=FS, beep=beep, n_win=128, hop=32, bg=True)
+    out = cp._shift_flags(arr, cond, e, cs, fs=fs, beep=beep, n_win=n_win, hop=hop, bg=True)
     return int(out.flags[0])
 
 
@@ -560,6 +566,17 @@ def test_the_shift_tolerance_caps_sigma_at_2_samples(seed):
     assert _shift_flag([0.5] * 4, T0 - S + 12, 0.5, ROW, 3.0, seed) == 0
     assert _shift_flag([0.5] * 4, T0 + 4 * S + 11, 0.5, ROW, 3.0, seed) == 4
     assert _shift_flag([0.5] * 4, T0 + 4 * S + 12, 0.5, ROW, 3.0, seed) == 0
+
+
+def test_the_shift_tolerance_caps_sigma_at_2_samples_at_44100_hz_scaled_with_the_rate():
+    """At 96 kHz the cap is 2 x 96000 / 44100 = 4.35 samples: sigma 6 gives a tolerance
+    of ceil(4.35 + 17.4 + 1) = 23, so a lone burst 14 or 22 samples after the place
+    before the beep flags and one 24 samples after does not (measured, 2 seeds)."""
+    fs = 96000.0
+    assert math.ceil(cp._allowed_scatter(fs / 44100, 2 * fs / 44100, 1, 5000.0)) == 23
+    for seed in (0, 1):
+        for off, flag in ((14, 4), (22, 4), (24, 0)):
+            assert _shift_flag([0.5] * 4, T0 - S + off, 0.5, ROW, 6.0, seed, fs=fs) == flag
 
 
 def _retry_case():
@@ -924,3 +941,29 @@ def test_groups_share_a_burst_within_2_samples_at_44100_hz_plus_2(fs, tol, monke
     x = 1e-3 * np.random.default_rng(0).standard_normal(n)  # called with no group too
     cp.detect_changepoint(x, fs=fs, beep=beep)
     assert seen == [pytest.approx(tol, abs=1e-12)]
+
+
+def _over_a_tone(seed: int, rise_db: float) -> np.ndarray:
+    """The default beep (peak 0.5) at 20000.3 over a steady tone 200 Hz above its
+    frequency ``rise_db`` under it (random phase), white noise of 0.001 (as in
+    ``test_changepoint_mutation4``)."""
+    b, n = Beep(), 40000
+    rng = np.random.default_rng(seed)
+    t = np.arange(n)
+    tone = np.sin(2 * np.pi * (b.f_hz + 200.0) * t / FS + rng.uniform(0.0, 2 * np.pi))
+    x = _burst(n, 20000.3, 0.5, b) + 0.5 / 10 ** (rise_db / 20) * tone
+    return x + 0.001 * rng.standard_normal(n)
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_find_bursts_defaults_find_a_beep_16_db_over_a_steady_tone(seed):
+    """``find_bursts``' defaults, 12 dB over the floor and a 10 dB rise: over a steady
+    tone of the band (the floor and the level before are the tone's) every burst of a beep
+    16 dB over it is found, each within 3.5 samples (measured 1.74 at most: the tone biases
+    the edge); asking a 20 dB rise, or 24 dB over the floor, finds none."""
+    x = _over_a_tone(seed, 16.0)
+    got = cp.find_bursts(x, fs=FS, beep=Beep())
+    assert len(got.onset) == 4
+    assert np.max(np.abs(got.onset - (20000.3 + 5000.0 * np.arange(4)))) < 3.5
+    assert len(cp.find_bursts(x, fs=FS, beep=Beep(), rise_db=20.0).onset) == 0
+    assert len(cp.find_bursts(x, fs=FS, beep=Beep(), threshold_db=24.0).onset) == 0
