@@ -1102,3 +1102,61 @@ def test_expected_separation_is_half_an_emissions_share_of_a_short_recording():
     np.testing.assert_allclose(a.onset, ons, atol=0.01)  # measured 1e-3
     b = T.detect_template(x, fs=FS, probe=p, expected=4, min_separation_s=0.05)
     np.testing.assert_allclose(b.onset, sorted([*ons[:3], ons[0] + 0.06 * FS]), atol=0.01)
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_snr_of_a_first_arrival_is_over_the_recordings_noise_floor(seed):
+    """Before the first arrival the floor is the recording's noise (the Rayleigh scale of
+    the whole weighted envelope), not the local window's: ``snr_db = 20 log10(height /
+    noise)``, the height the peak's (interpolated: at most 0.03 dB above the sample
+    maximum; measured 0.016)."""
+    from rangekit.detect.matched import noise_level
+
+    p = _probe(2000.0, 6000.0, 0.02)
+    for onset in (3000.0, 3000.37, 9000.6):
+        x = _recording(p, [onset], [1.0], 0.03, seed)
+        a = T.detect_template(x, fs=FS, probe=p)
+        wf = _filter_of(p, x, 441)
+        env = np.abs(wf.mf.correlate(wf.condition(x)))
+        want = 20.0 * math.log10(env.max() / max(noise_level(env), 1e-6 * env.max()))
+        assert 0.0 <= a.snr_db[0] - want < 0.03, (onset, a.snr_db[0], want)
+
+
+def test_recordings_as_short_as_the_probe():
+    """A recording exactly the probe's length is searched (one arrival: the probe itself,
+    timed 18.9 samples late, measured: the whole arrival sits in the conditioning FIR's
+    edge); one sample shorter is refused; under 3 samples gives no arrival (before the
+    length check)."""
+    from rangekit.errors import IncompatibleInputError
+    from rangekit.signals.probe import Probe
+
+    p = _probe(2000.0, 6000.0, 0.02)
+    x = np.asarray(p.samples, dtype=float).copy()
+    a = T.detect_template(x, fs=FS, probe=p)
+    assert len(a) == 1
+    with pytest.raises(IncompatibleInputError):
+        T.detect_template(x[:-1], fs=FS, probe=p)
+    q = Probe(np.random.default_rng(0).standard_normal(16), FS)
+    with pytest.raises(IncompatibleInputError):
+        T.detect_template(np.ones(3), fs=FS, probe=q)
+    assert len(T.detect_template(np.ones(2), fs=FS, probe=q)) == 0
+
+
+def test_given_spectra_must_be_at_the_recordings_rate():
+    """``spectra`` of this recording gives the default's arrivals exactly; of a recording
+    at another rate (or not a Spectra) it is refused."""
+    from rangekit.errors import InvalidParameterError
+
+    p = _probe(2000.0, 6000.0, 0.02)
+    x = _recording(p, [3000.3], [1.0], 1e-3, 0)
+    base = T._base(p, FS, DEFAULT_BLOCK)
+    own = welch_spectra(x, fs=FS, nperseg=base.nperseg)
+    a = T.detect_template(x, fs=FS, probe=p)
+    b = T.detect_template(x, fs=FS, probe=p, spectra=own)
+    np.testing.assert_array_equal(a.onset, b.onset)
+    np.testing.assert_array_equal(a.sigma, b.sigma)
+    other = welch_spectra(x, fs=48000.0, nperseg=base.nperseg)
+    with pytest.raises(InvalidParameterError, match="spectra"):
+        T.detect_template(x, fs=FS, probe=p, spectra=other)
+    with pytest.raises(InvalidParameterError, match="spectra"):
+        T.detect_template(x, fs=FS, probe=p, spectra=own.noise)
