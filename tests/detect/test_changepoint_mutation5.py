@@ -967,3 +967,30 @@ def test_find_bursts_defaults_find_a_beep_16_db_over_a_steady_tone(seed):
     assert np.max(np.abs(got.onset - (20000.3 + 5000.0 * np.arange(4)))) < 3.5
     assert len(cp.find_bursts(x, fs=FS, beep=Beep(), rise_db=20.0).onset) == 0
     assert len(cp.find_bursts(x, fs=FS, beep=Beep(), threshold_db=24.0).onset) == 0
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_an_onset_a_sample_or_two_before_the_found_window_does_not_skip_the_anchor(seed):
+    """The found-onset window of an anchor ``a`` starts a taper into its search window,
+    at ``a - 218`` (44.1 kHz), on both paths: with the beep found at 5000.3 (from anchor
+    5000) and a reflection 300 samples later (peak 0.6), a second anchor 219 or 220
+    samples after the onset is not skipped, and finds the beep's onset again from the
+    reflection's edge (measured, seeds 0-2): two rows, the compiled loop's equal to the
+    reference's. (A window starting a taper before the search window would skip it.)"""
+    b, n = Beep(), 30000
+    x = _burst(n, 5000.3, 0.5, b) + _burst(n, 5300.3, 0.6, b)
+    x += 0.001 * np.random.default_rng(seed).standard_normal(n)
+    n_win, hop, e, _, _ = cp._candidates(
+        x, fs=FS, beep=b, win_s=cp.WIN_S, hop_s=cp.HOP_S, threshold_db=6.0, rise_db=10.0
+    )
+    kw = {"fs": FS, "beep": b, "n_win": n_win, "hop": hop, "background": True,
+          "min_bursts": 3, "quiet": 0.0, "oob": False}  # fmt: skip
+    ref_cond = cp._conditioner(x, fs=FS, beep=b, condition=True)
+    fast_cond = cp._conditioner(x, fs=FS, beep=b, condition=True, compiled=True)
+    for d in (1, 2):
+        anchors = np.array([5000, 5000 + 218 + d], dtype=np.int64)
+        found = cp._Found()
+        ref = [r for a in anchors if (r := cp._beep_row(ref_cond, int(a), e, found, **kw))]
+        fast = cp._rows_compiled(fast_cond, anchors, e, **kw)
+        assert len(ref) == 2 and abs(ref[1][0] - 5000.3) < 0.05, d  # measured 0.02
+        assert [r[0] for r in fast] == pytest.approx([r[0] for r in ref], abs=1e-6), d
