@@ -994,3 +994,23 @@ def test_an_onset_a_sample_or_two_before_the_found_window_does_not_skip_the_anch
         fast = cp._rows_compiled(fast_cond, anchors, e, **kw)
         assert len(ref) == 2 and abs(ref[1][0] - 5000.3) < 0.05, d  # measured 0.02
         assert [r[0] for r in fast] == pytest.approx([r[0] for r in ref], abs=1e-6), d
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_a_burst_is_refined_as_clipped_when_clipped_samples_lie_2_pre_before_to_2_post_after(
+    seed,
+):
+    """``_fit_beep`` refines a burst on the raw samples (flagged ``clipped``) when clipped
+    samples lie in ``[a - 2 pre, a + 2 post)`` about its integer onset ``a`` (pre 24 and
+    post 30 samples at 44.1 kHz: ``[a - 48, a + 60)``): a two-sample click at the rail
+    starting 46 samples before or 58 after each burst's onset flags the beep, one starting
+    50 before or 62 after does not (measured at the beep at 10000.3; the onset within 0.2
+    samples either way, measured 0.14)."""
+    b, n = Beep(), 40000
+    for off, flagged in ((-50, False), (-46, True), (58, True), (62, False)):
+        x = _burst(n, 10000.3, 0.5, b) + 0.01 * np.random.default_rng(seed).standard_normal(n)
+        for k in range(4):
+            x[10000 + k * 5000 + off : 10000 + k * 5000 + off + 2] = 0.9
+        arr = cp.detect_changepoint(x, fs=FS, beep=b)
+        assert len(arr) == 1 and abs(arr.onset[0] - 10000.3) < 0.2, off
+        assert arr.flag_names(0) == (("clipped",) if flagged else ()), off
