@@ -1160,3 +1160,37 @@ def test_given_spectra_must_be_at_the_recordings_rate():
         T.detect_template(x, fs=FS, probe=p, spectra=other)
     with pytest.raises(InvalidParameterError, match="spectra"):
         T.detect_template(x, fs=FS, probe=p, spectra=own.noise)
+
+
+def test_a_lookback_of_zero_still_times_the_arrival():
+    """``lookback_s=0`` is legal: the first-path search still gets its three lags."""
+    p = _probe(2000.0, 6000.0, 0.02)
+    x = _recording(p, [3000.3], [1.0], 1e-3, 0)
+    a = T.detect_template(x, fs=FS, probe=p, lookback_s=0.0)
+    assert len(a) == 1 and abs(a.onset[0] - 3000.3) < 0.01  # measured 5e-4
+
+
+def test_only_the_arrival_with_clipped_samples_is_flagged_clipped():
+    """Two arrivals 9000 samples apart, the second clipped at 1 (3x over): ``clipped`` on
+    the second only (its samples ``[j, j + len(template))``, dilated by the FIR's reach),
+    both still timed."""
+    p = _probe(2000.0, 6000.0, 0.02)
+    x = np.clip(_recording(p, [3000.3, 12000.6], [0.3, 3.0], 1e-3, 0), -1.0, 1.0)
+    a = T.detect_template(x, fs=FS, probe=p)
+    assert len(a) == 2 and abs(a.onset[0] - 3000.3) < 0.01 and abs(a.onset[1] - 12000.6) < 1.0
+    assert [bool(f & 1) for f in a.flags] == [False, True]
+
+
+def test_an_arrival_in_anothers_reverberation_is_reverb_limited():
+    """A second arrival 0.15 s after the first, inside its reverberation (decaying noise
+    50x the recording's, 0.1 s time constant): its local floor is above REVERB_FACTOR (2)
+    times the noise, so ``reverb_limited``; the first arrival's is not."""
+    p = _probe(2000.0, 6000.0, 0.02)
+    n = 30000
+    x = _recording(p, [3000.3, 3000.3 + 0.15 * FS], [1.0, 0.3], 1e-3, 0, n)
+    t = np.arange(n)
+    decay = np.where(t > 3900, np.exp(-(t - 3900) / (0.1 * FS)), 0.0)
+    x += 0.05 * decay * np.random.default_rng(5).standard_normal(n)
+    a = T.detect_template(x, fs=FS, probe=p)
+    assert len(a) == 2
+    assert [bool(f & 32) for f in a.flags] == [False, True]
