@@ -58,8 +58,8 @@ def test_real_side_ratio_against_a_loop_on_random_responses():
 def test_sinc_value_against_the_kaiser_window_computed_directly():
     """``_sinc_at(r, t) = sum_k r[k] sinc(t - k) w(t - k)`` over the ``2 SINC_HALF`` taps
     ``floor(t) - SINC_HALF + 1 .. floor(t) + SINC_HALF`` (those inside ``r``), ``w`` the
-    Kaiser window ``I0(beta sqrt(1 - (u / (SINC_HALF + 1))^2)) / I0(beta)``: within 2e-5 of
-    the tap sum's scale (the window is read off a table; measured 1.4e-6)."""
+    Kaiser window ``I0(beta sqrt(1 - (u / (SINC_HALF + 1))^2)) / I0(beta)``: within 5e-6 of
+    the tap sum's scale (the window is read off a table; measured 2.6e-6)."""
     rng = np.random.default_rng(3)
     r = rng.standard_normal(80)
     H, beta = C.SINC_HALF, C.SINC_BETA
@@ -71,7 +71,7 @@ def test_sinc_value_against_the_kaiser_window_computed_directly():
         w = np.i0(beta * np.sqrt(np.clip(1.0 - (u / (H + 1.0)) ** 2, 0.0, 1.0))) / np.i0(beta)
         want = float(np.dot(r[k], np.sinc(u) * w))
         worst = max(worst, abs(C._sinc_at(r, t) - want))
-    assert worst < 2e-5
+    assert worst < 5e-6
 
 
 def test_coherent_weight_against_its_closed_form():
@@ -152,7 +152,7 @@ def test_coherent_lag_is_scale_invariant_down_to_1e_300(scale):
     t1, cp1 = C.coherent_lag(c, 32.3, 3)
     t, cp = C.coherent_lag(c * scale, 32.3, 3)
     assert t == pytest.approx(t1, abs=1e-9) and cp == pytest.approx(cp1, abs=1e-9)
-    assert 0.3 < cp1 < 0.95  # a phase between the corners: measured 0.83
+    assert 0.3 < cp1 < 0.95  # a phase between the corners: measured 0.79
 
 
 def test_coherent_interp_rms_floor_and_default_delays():
