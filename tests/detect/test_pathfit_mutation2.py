@@ -414,3 +414,34 @@ def test_evaluate_is_least_squares_with_the_models_jacobian(model, with_theta):
     a_min, *_ = np.linalg.lstsq(basis, x, rcond=None)
     np.testing.assert_allclose(basis @ two.a, basis @ a_min, atol=1e-9)
     assert two.cost == pytest.approx(float(np.sum((x - basis @ a_min) ** 2)), rel=1e-9)
+
+
+@pytest.mark.parametrize(
+    ("a2", "rel_add", "n_paths"), [(0.08, 0.1, 1), (0.12, 0.1, 2), (0.08, 0.05, 2)]
+)
+def test_a_further_path_must_reach_rel_add_of_the_strongest(model, a2, rel_add, n_paths):
+    """A noiseless reflection 120 samples after the direct path (beyond the two-path
+    scan's reach; the noise sigma 1e-5 puts it hundreds of noise scales up) is fitted as
+    a further path only at ``rel_add`` of the strongest path's amplitude or more: 0.08 of
+    it not at the default 0.1, at 0.05 yes; 0.12 at the default."""
+    x = received(12.0, [1000.3, 1120.6], [1.0, a2])
+    f = P.fit_arrival(x, 1000.3, model=model, sigma=1e-5, q0=12.0, hold=True, rel_add=rel_add)
+    assert f.n_paths == n_paths
+    if n_paths == 2:
+        np.testing.assert_allclose(f.onsets, [1000.3, 1120.6], atol=1e-3)
+
+
+@pytest.mark.parametrize(("z", "n_paths"), [(4.1, 1), (4.4, 2)])
+def test_a_further_path_must_pay_schwarzs_three_ln_n(model, z, n_paths):
+    """With ``k_add`` 3, a further path ``z`` noise scales up is kept only if it lowers
+    the cost by ``3 ln n`` noise variances (Schwarz 1978, "Estimating the dimension of a
+    model", Ann. Statist. 6(2): ``ln n`` per parameter, three per path): ``n`` = 332
+    samples of segment, 17.4 variances, so a noiseless path at ``z`` = 4.1 (gain about
+    ``z^2`` = 16.8; the one-path fit's chi-square, which the path removes, measured 16.2)
+    is not kept and one at 4.4 (``z^2`` = 19.4) is."""
+    assert model.segment == 332 and 3 * math.log(332) == pytest.approx(17.4154, abs=1e-4)
+    a2 = 0.3
+    x = received(12.0, [1000.3, 1120.6], [1.0, a2])
+    sigma = a2 * math.sqrt(model.energy(12.0, model.f0_hz)) / z
+    f = P.fit_arrival(x, 1000.3, model=model, sigma=sigma, q0=12.0, hold=True, k_add=3.0)
+    assert f.n_paths == n_paths
