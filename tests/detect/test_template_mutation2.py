@@ -98,7 +98,7 @@ def test_unexplained_fraction_is_one_minus_rho2_minus_the_noise_share(b, off, fl
     c = _path(ALPHA, J + D) + _path(b * ALPHA, J + D + off)
     eps, _ = T._shape(c, J, D, wf, floor)
     want = _eps_reference(c, J, D, floor)
-    assert want > 1e-4 or floor > 0  # the second path is seen (measured >= 1.2e-3)
+    assert want > 1.5e-3 or floor > 0  # the second path is seen (measured >= 3.1e-3)
     assert eps == pytest.approx(want, abs=1e-12, rel=1e-9)
 
 
@@ -183,7 +183,7 @@ def test_odd_share_against_the_analytic_reflection(b, off, floor):
 
     got = T._odd_eps(c_at(L), J, D, _wf(), floor)
     want = _odd_reference(c_at, J, D, floor)
-    assert want > 1e-3 or floor > 0  # measured >= 4e-3 without noise
+    assert want > 1.5e-3 or floor > 0  # measured >= 3.0e-3 without noise
     assert got == pytest.approx(want, abs=1e-5)
 
 
@@ -834,8 +834,8 @@ def test_confidence_is_the_first_paths_height_over_the_strongest():
     p = _probe(2000.0, 6000.0, 0.02)
     x = _recording(p, [3000.0, 3000.0 + 0.003 * FS], [0.5, 1.0], 1e-3, 0)
     a = T.detect_template(x, fs=FS, probe=p)
-    assert len(a) == 1 and abs(a.onset[0] - 3000.0) < 0.01
-    assert a.confidence[0] == pytest.approx(0.5, abs=0.03)
+    assert len(a) == 1 and abs(a.onset[0] - 3000.0) < 0.015  # measured 0.0076
+    assert a.confidence[0] == pytest.approx(0.5, abs=0.01)  # measured 0.4975
 
 
 def test_low_snr_at_either_side_of_twice_the_detection_threshold():
@@ -1106,9 +1106,10 @@ def test_expected_separation_is_half_an_emissions_share_of_a_short_recording():
     x = place(p.samples, [*ons, ons[0] + 0.06 * FS], [1.0, 1.0, 1.0, 0.5, 0.8], n)
     x += 1e-3 * np.random.default_rng(1).standard_normal(n)
     a = T.detect_template(x, fs=FS, probe=p, expected=4)
-    np.testing.assert_allclose(a.onset, ons, atol=0.01)  # measured 1e-3
+    np.testing.assert_allclose(a.onset, ons, atol=3e-3)  # measured 1.1e-3
     b = T.detect_template(x, fs=FS, probe=p, expected=4, min_separation_s=0.05)
-    np.testing.assert_allclose(b.onset, sorted([*ons[:3], ons[0] + 0.06 * FS]), atol=0.01)
+    want = sorted([*ons[:3], ons[0] + 0.06 * FS])
+    np.testing.assert_allclose(b.onset, want, atol=8e-3)  # measured 3.9e-3 (the echo)
 
 
 @pytest.mark.parametrize("seed", [0, 1, 2])
@@ -1174,17 +1175,17 @@ def test_a_lookback_of_zero_still_times_the_arrival():
     p = _probe(2000.0, 6000.0, 0.02)
     x = _recording(p, [3000.3], [1.0], 1e-3, 0)
     a = T.detect_template(x, fs=FS, probe=p, lookback_s=0.0)
-    assert len(a) == 1 and abs(a.onset[0] - 3000.3) < 0.01  # measured 5e-4
+    assert len(a) == 1 and abs(a.onset[0] - 3000.3) < 1e-3  # measured 5.5e-4
 
 
 def test_only_the_arrival_with_clipped_samples_is_flagged_clipped():
     """Two arrivals 9000 samples apart, the second clipped at 1 (3x over): ``clipped`` on
     the second only (its samples ``[j, j + len(template))``, dilated by the FIR's reach),
-    both still timed."""
+    both still timed (measured 9e-4 and 0.24 samples off: the clipped one distorted)."""
     p = _probe(2000.0, 6000.0, 0.02)
     x = np.clip(_recording(p, [3000.3, 12000.6], [0.3, 3.0], 1e-3, 0), -1.0, 1.0)
     a = T.detect_template(x, fs=FS, probe=p)
-    assert len(a) == 2 and abs(a.onset[0] - 3000.3) < 0.01 and abs(a.onset[1] - 12000.6) < 1.0
+    assert len(a) == 2 and abs(a.onset[0] - 3000.3) < 2e-3 and abs(a.onset[1] - 12000.6) < 0.5
     assert [bool(f & 1) for f in a.flags] == [False, True]
 
 
