@@ -1202,3 +1202,17 @@ def test_an_arrival_in_anothers_reverberation_is_reverb_limited():
     a = T.detect_template(x, fs=FS, probe=p)
     assert len(a) == 2
     assert [bool(f & 32) for f in a.flags] == [False, True]
+
+
+def test_noise_spectra_is_welchs_with_the_detectors_segment():
+    """``noise_spectra`` is the Welch spectrum ``detect_template`` weights by: nperseg
+    1024 at 44.1 kHz; giving it changes nothing."""
+    p = _probe(2000.0, 6000.0, 0.02)
+    x = _recording(p, [3000.3], [1.0], 1e-3, 2)
+    sp = T.noise_spectra(x, fs=FS, probe=p)
+    ref = welch_spectra(x, fs=FS, nperseg=1024)
+    np.testing.assert_array_equal(sp.f_hz, ref.f_hz)
+    np.testing.assert_array_equal(sp.noise, ref.noise)
+    a = T.detect_template(x, fs=FS, probe=p)
+    b = T.detect_template(x, fs=FS, probe=p, spectra=sp)
+    np.testing.assert_array_equal(a.onset, b.onset)
