@@ -445,3 +445,24 @@ def test_a_further_path_must_pay_schwarzs_three_ln_n(model, z, n_paths):
     sigma = a2 * math.sqrt(model.energy(12.0, model.f0_hz)) / z
     f = P.fit_arrival(x, 1000.3, model=model, sigma=sigma, q0=12.0, hold=True, k_add=3.0)
     assert f.n_paths == n_paths
+
+
+@pytest.mark.parametrize(("z", "n_paths"), [(2.9, 1), (3.1, 2)])
+def test_a_held_one_path_fit_is_tried_as_two_beyond_z_two_paths(model, z, n_paths):
+    """A held fit tries two overlapping paths when the one-path residual exceeds the noise
+    by ``Z_TWO_PATHS`` = 3 deviations of its chi-square (``(chi2 - dof) / sqrt(2 dof)``,
+    ``dof`` = 332 - 3). A noiseless direct path and a half-as-strong reflection 9 samples
+    later (0.4 resolutions: one merged peak, which the further-path loop does not split),
+    with the noise sigma set so that the one-path misfit is ``z``: at 2.9 the merged
+    path (its onset 2.6 samples late), at 3.1 both paths at their onsets (within 1e-3)."""
+    x = received(12.0, [1000.3, 1009.3], [1.0, 0.5])
+    one = P.fit_arrival(x, 1000.3, model=model, sigma=1e-6, q0=12.0, hold=True, max_paths=1)
+    resid = one.chi2 * 1e-12
+    dof = model.segment - 3
+    sigma = math.sqrt(resid / (dof + z * math.sqrt(2.0 * dof)))
+    f = P.fit_arrival(x, 1000.3, model=model, sigma=sigma, q0=12.0, hold=True)
+    assert f.n_paths == n_paths
+    if n_paths == 1:
+        assert 2.0 < f.onset - 1000.3 < 3.2  # measured 2.65
+    else:
+        np.testing.assert_allclose(f.onsets, [1000.3, 1009.3], atol=1e-3)
