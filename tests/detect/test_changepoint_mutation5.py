@@ -541,6 +541,10 @@ def test_the_places_beyond_are_one_spacing_from_the_outermost_bursts_found():
     assert _shift_flag([0.5] * 4, T0 - S, 0.5, row, 0.25) == 4
     assert _shift_flag([0.5] * 4, T0 + 4 * S, 0.5, row, 0.25) == 4
     assert _shift_flag([0.5] * 4, None, 0.0, row, 0.25) == 0
+    # burst 2 reported 10 late instead: the place after is still from burst 3
+    row = [T0, T0 + S, T0 + 2 * S + 10, T0 + 3 * S]
+    assert _shift_flag([0.5] * 4, T0 + 4 * S, 0.5, row, 0.25) == 4
+    assert _shift_flag([0.5] * 4, T0 - S, 0.5, row, 0.25) == 4
 
 
 @pytest.mark.parametrize("seed", [0, 1, 2])
@@ -766,6 +770,11 @@ def test_resolve_aliases_keeps_the_strongest_selection_sharing_no_burst():
         assert [r[0] for r in got] == [rows[i][0] for i in ref]
         n_dropped += len(got) < n
     assert 40 < n_dropped < 150  # measured 81 of 150 sets lose a group
+    # two groups whose onsets lie exactly tol apart are one indexing, not aliases
+    pair = [_group(1000.0, 2.0), _group(1000.0 + tol, 3.0)]
+    assert [r[0] for r in cp._resolve_aliases(pair, tol=tol)] == [1000.0, 1000.0 + tol]
+    pair = [_group(1000.0, 2.0), _group(1000.0 + 5000.0, 3.0)]
+    assert [r[0] for r in cp._resolve_aliases(pair, tol=tol)] == [6000.0]
     # a chain of 12 (13) linked groups one spacing apart, strengths 2, 3, 2, 2, 3, 2, ...:
     # searched whole (pair by pair); the two rules keep different groups there
     for size, whole in ((12, True), (13, False)):
