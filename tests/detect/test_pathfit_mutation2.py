@@ -466,3 +466,25 @@ def test_a_held_one_path_fit_is_tried_as_two_beyond_z_two_paths(model, z, n_path
         assert 2.0 < f.onset - 1000.3 < 3.2  # measured 2.65
     else:
         np.testing.assert_allclose(f.onsets, [1000.3, 1009.3], atol=1e-3)
+
+
+@pytest.mark.parametrize("hold", [True, False])
+@pytest.mark.parametrize(
+    ("a2", "rel_add", "n_paths"), [(0.09, 0.1, 1), (0.11, 0.1, 2), (0.06, 0.05, 2)]
+)
+def test_an_overlapping_pair_needs_rel_add_between_its_amplitudes(
+    model, hold, a2, rel_add, n_paths
+):
+    """The two-path scan's pair replaces one path only if its weaker amplitude is at
+    least ``rel_add`` of its stronger: a noiseless reflection 9 samples after the direct
+    path (merged with it) at 0.09 of its amplitude stays merged at the default 0.1 (the
+    onset pulled 0.6-0.8 samples late), at 0.11 (or 0.06 with ``rel_add`` 0.05) both
+    paths are fitted at their onsets and amplitudes; held or free."""
+    x = received(12.0, [1000.3, 1009.3], [1.0, a2])
+    f = P.fit_arrival(x, 1000.3, model=model, sigma=1e-6, q0=12.0, hold=hold, rel_add=rel_add)
+    assert f.n_paths == n_paths
+    if n_paths == 2:
+        np.testing.assert_allclose(f.onsets, [1000.3, 1009.3], atol=1e-3)
+        np.testing.assert_allclose(f.amplitudes, [1.0, a2], rtol=1e-3)
+    else:
+        assert 0.3 < f.onsets[0] - 1000.3 < 1.6  # measured 0.80 held, 0.63 free
