@@ -835,3 +835,34 @@ def test_the_compiled_beep_loop_equals_the_numpy_detector(case, monkeypatch):
         np.testing.assert_allclose(fast.burst_onsets, ref.burst_onsets, rtol=0, atol=1e-6)
         n_found += len(ref)
     assert n_found >= 2
+
+
+@pytest.mark.parametrize("cut", [0, 30, 45, 70, 200])
+def test_the_compiled_beep_loop_at_the_recordings_ends(cut, monkeypatch):
+    """A beep whose last burst starts ``cut`` samples before the recording's end (its
+    stretch cut short, the statistic's windows bounded by the end) and one starting at
+    the recording's first samples: the compiled loop gives the numpy detector's
+    arrivals."""
+    from rangekit.signals import Beep, beep_waveform
+
+    beep = Beep()
+    rng = np.random.default_rng(RNG_SEED + 50 + cut)
+    wave = beep_waveform(beep)
+    last = (beep.n_bursts - 1) * beep.spacing
+    at = [int(rng.integers(300, 900)), 25000]
+    n = at[1] + last + cut
+    x = 0.003 * rng.standard_normal(n)
+    for a in at:
+        seg = wave[: n - a]
+        x[a : a + len(seg)] += 0.3 * seg
+    x = x[int(rng.integers(0, 200)) :]  # the first beep near the very start
+    monkeypatch.setattr(K, "NUMBA_MIN_SAMPLES", 10**12)
+    ref = cp.detect_changepoint(x, fs=FS)
+    monkeypatch.setattr(K, "NUMBA_MIN_SAMPLES", 0)
+    fast = cp.detect_changepoint(x, fs=FS)
+    assert len(fast) == len(ref) >= 1
+    np.testing.assert_allclose(fast.onset, ref.onset, rtol=0, atol=1e-6)
+    np.testing.assert_allclose(fast.sigma, ref.sigma, rtol=1e-9)
+    np.testing.assert_array_equal(fast.flags, ref.flags)
+    np.testing.assert_array_equal(fast.confidence, ref.confidence)
+    np.testing.assert_allclose(fast.burst_onsets, ref.burst_onsets, rtol=0, atol=1e-6)
