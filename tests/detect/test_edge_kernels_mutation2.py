@@ -866,3 +866,32 @@ def test_the_compiled_beep_loop_at_the_recordings_ends(cut, monkeypatch):
     np.testing.assert_array_equal(fast.flags, ref.flags)
     np.testing.assert_array_equal(fast.confidence, ref.confidence)
     np.testing.assert_allclose(fast.burst_onsets, ref.burst_onsets, rtol=0, atol=1e-6)
+
+
+@pytest.mark.parametrize("shift", [-4, -3, 3, 4])
+@pytest.mark.parametrize("which", [0, 3])
+def test_the_compiled_beep_loop_with_a_burst_just_outside_its_search_window(
+    shift, which, monkeypatch
+):
+    """One burst played ``shift`` samples off its place (just beyond the +-2 samples
+    within which each burst is sought about the joint edge): its statistic's peak lies
+    outside that window; the compiled loop picks within the window as the numpy code."""
+    from rangekit.signals import Beep, beep_waveform
+
+    beep = Beep()
+    rng = np.random.default_rng(RNG_SEED + 60 + 10 * which + shift)
+    one = beep_waveform(Beep(n_bursts=1))
+    x = 0.002 * rng.standard_normal(30000)
+    at = 4000
+    for k in range(beep.n_bursts):
+        a = at + k * beep.spacing + (shift if k == which else 0)
+        x[a : a + len(one)] += 0.3 * one
+    monkeypatch.setattr(K, "NUMBA_MIN_SAMPLES", 10**12)
+    ref = cp.detect_changepoint(x, fs=FS, beep=beep)
+    monkeypatch.setattr(K, "NUMBA_MIN_SAMPLES", 0)
+    fast = cp.detect_changepoint(x, fs=FS, beep=beep)
+    assert len(fast) == len(ref) == 1
+    np.testing.assert_allclose(fast.onset, ref.onset, rtol=0, atol=1e-6)
+    np.testing.assert_allclose(fast.sigma, ref.sigma, rtol=1e-9)
+    np.testing.assert_array_equal(fast.flags, ref.flags)
+    np.testing.assert_allclose(fast.burst_onsets, ref.burst_onsets, rtol=0, atol=1e-6)
