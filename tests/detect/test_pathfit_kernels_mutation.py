@@ -479,3 +479,23 @@ def test_held_fit_equals_a_restatement_of_the_damped_loop(model):
     # no step accepted 1, a small gain or move 5
     assert clipped > 2 and whys["max_iter"] > 6 and whys["converged"] > 3, whys
     assert whys["rejected"] >= 1 and whys["small gain"] > 2, whys
+
+
+def test_held_result_says_when_the_reference_must_run(model):
+    """Status 0 (the caller runs the numpy reference) where the Gram matrix (two paths at
+    one onset), the onsets' block A (no signal: every amplitude 0) or theta's Schur
+    complement S (no theta derivative) is not positive definite; 1 otherwise."""
+    rng = np.random.default_rng(SEED + 40)
+    th, _, _, _, x, sigma = _held_case(rng, model)
+    tabd, nt, wc = P._shift_tables(model, th, derivs=True)
+    rest = (th, 0.0, -1e9, 1e9, sigma, P._energy(model, th), 0.0, 0.5, model.theta_step())
+
+    def status(x, u, tabd):
+        rows01 = np.ascontiguousarray(_rows_ifft(model, th, u, len(x)))
+        return K.call("held_result", x, rows01, tabd, nt, wc, model.n_fft, u, *rest)[0]
+
+    u = np.array([40.0, 90.0])
+    assert status(x, u, tabd) == 1
+    assert status(x, np.array([40.0, 40.0]), tabd) == 0  # singular Gram matrix
+    assert status(np.zeros_like(x), u, tabd) == 0  # no signal: A = 0
+    assert status(x, u, np.zeros_like(tabd)) == 0  # no theta derivative: S = 0
