@@ -268,3 +268,44 @@ def test_groups_pool_each_transducer_pair_apart():
     np.testing.assert_array_equal(mixed.sigma, own.sigma)
     with pytest.raises(InvalidParameterError, match="groups has 7 labels for 8 windows"):
         run(groups=[0] * 7)
+
+
+def test_coded_template_through_either_order_either_side_or_a_subclass():
+    """The template is the drive through ``tx`` then ``rx``: two LTI resonators commute,
+    so swapping them gives the same template (to 1e-12 of its peak, the same length: the
+    rendered tail uses the larger Q and the lower f0 of the two); one transducer as
+    ``tx`` or as ``rx`` is the same template; a ``Transducer`` subclass (filtered by its
+    own ``apply``, scipy's ``lfilter``) gives the biquad loop's template bit for bit; the
+    drive through scipy's lfilter of each element's coefficients, cut where the rest of
+    the energy is ``tail_db`` below the whole, is the template (to 1e-12, the cut within
+    one sample)."""
+    from scipy.signal import lfilter
+
+    from rangekit.signals.barker import burst_waveform
+
+    class Sub(Transducer):
+        pass
+
+    a, b = Transducer(q=4.0, f0_hz=39000.0), Transducer(q=12.0, f0_hz=41000.0)
+    ab = coded_template(CodedBurst(), fs=FS, tx=a, rx=b)
+    ba = coded_template(CodedBurst(), fs=FS, tx=b, rx=a)
+    assert len(ab) == len(ba)
+    np.testing.assert_allclose(ab, ba, rtol=0, atol=1e-12 * np.abs(ab).max())
+    np.testing.assert_array_equal(
+        coded_template(CodedBurst(), fs=FS, tx=b), coded_template(CodedBurst(), fs=FS, rx=b)
+    )
+    sub = coded_template(
+        CodedBurst(), fs=FS, tx=Sub(q=4.0, f0_hz=39000.0), rx=Sub(q=12.0, f0_hz=41000.0)
+    )
+    np.testing.assert_array_equal(sub, ab)
+    drive = burst_waveform(CodedBurst(fs=FS))
+    for tail_db in (40.0, 60.0):
+        y = np.concatenate([drive, np.zeros(20000)])
+        for t in (a, b):
+            y = lfilter(*t.coefficients(fs=FS), y)
+        rest = np.cumsum(y[::-1] ** 2)[::-1]
+        keep = int(np.argmax(rest <= rest[0] * 10 ** (-tail_db / 10)))
+        got = coded_template(CodedBurst(), fs=FS, tx=a, rx=b, tail_db=tail_db)
+        assert abs(len(got) - keep) <= 1, (len(got), keep)
+        m = min(len(got), keep)
+        np.testing.assert_allclose(got[:m], y[:m], rtol=0, atol=1e-12 * np.abs(y).max())
