@@ -1216,3 +1216,32 @@ def test_noise_spectra_is_welchs_with_the_detectors_segment():
     a = T.detect_template(x, fs=FS, probe=p)
     b = T.detect_template(x, fs=FS, probe=p, spectra=sp)
     np.testing.assert_array_equal(a.onset, b.onset)
+
+
+def test_the_side_lobe_pull_is_taken_off_up_to_a_quarter_lobe_and_kept_in_sigma(monkeypatch):
+    """The pull (``_leakage``, stubbed here to a given value; the shape term stubbed to 0)
+    is taken off the onset when it is at most LEAK_CORRECT_LOBE (1/4) of the main lobe's
+    half width, and LEAK_RESIDUAL (1/2) of it stays in sigma (in quadrature); beyond, the
+    onset stays and the whole pull is in sigma. At exactly a quarter lobe it is taken off."""
+    p = _probe(2000.0, 6000.0, 0.02)
+    x = _recording(p, [3000.3], [1.0], 1e-3, 0)
+    quarter = 0.25 * _filter_of(p, x, 441).half_lobe
+    monkeypatch.setattr(T, "_unexplained", lambda *a, **k: 0.0)
+
+    def run(pull):
+        monkeypatch.setattr(T, "_leakage", lambda *a, **k: pull)
+        a = T.detect_template(x, fs=FS, probe=p, transducer_ripple_db=0.0)
+        return a.onset[0], a.sigma[0]
+
+    on0, s0 = run(0.0)
+    cases = [
+        (0.3, True, 0.15),
+        (-0.3, True, 0.15),
+        (quarter, True, 0.5 * quarter),
+        (1.01 * quarter, False, 1.01 * quarter),
+        (5.0, False, 5.0),
+    ]
+    for pull, taken, kept in cases:
+        on, s = run(pull)
+        assert on == pytest.approx(on0 - (pull if taken else 0.0), abs=1e-9), pull
+        assert s == pytest.approx(math.hypot(s0, kept), rel=1e-9), pull
