@@ -309,3 +309,32 @@ def test_coded_template_through_either_order_either_side_or_a_subclass():
         assert abs(len(got) - keep) <= 1, (len(got), keep)
         m = min(len(got), keep)
         np.testing.assert_allclose(got[:m], y[:m], rtol=0, atol=1e-12 * np.abs(y).max())
+
+
+def _spikes(n=200, floor=0.01, **peaks):
+    e = np.full(n, floor)
+    for k, v in peaks.items():
+        e[int(k[1:])] = v
+    return e
+
+
+def test_first_path_detection_threshold_and_noise_floor_at_their_boundaries():
+    """Nothing is detected unless the strongest peak clears ``k_detect`` noise scales:
+    a single peak at exactly 4.5 noise scales is not, one float above is; the same with
+    ``k_detect`` 2. A noise of 0 (a noiseless render) is floored at ``NOISE_FLOOR_REL``
+    = 1e-6 of the envelope's peak: the SNR is then 1e6, and a side peak under 6e-6 of the
+    strongest cannot be taken as the first path while one above it (and above 0.25 of the
+    strongest) can."""
+    at = 4.5
+    assert M.first_path(_spikes(p100=at), noise=1.0) is None
+    p = M.first_path(_spikes(p100=math.nextafter(at, math.inf)), noise=1.0)
+    assert p is not None and p.lag == 100.0 and p.snr == pytest.approx(4.5, rel=1e-12)
+    assert M.first_path(_spikes(p100=2.0), noise=1.0, k_detect=2.0) is None
+    assert M.first_path(_spikes(p100=2.01), noise=1.0, k_detect=2.0) is not None
+    p = M.first_path(_spikes(floor=0.0, p100=3.0), noise=0.0)
+    assert p.snr == pytest.approx(1e6, rel=1e-12) and p.height == 3.0
+    env = _spikes(floor=0.0, p50=3.0 * 5e-6, p100=3.0)
+    p = M.first_path(env, noise=0.0, rel_threshold=1e-6)
+    assert p.lag == 100.0  # 5e-6 of the peak is under 6 floored noise scales
+    env[50] = 3.0 * 7e-6
+    assert M.first_path(env, noise=0.0, rel_threshold=1e-6).lag == 50.0
