@@ -1245,3 +1245,19 @@ def test_the_side_lobe_pull_is_taken_off_up_to_a_quarter_lobe_and_kept_in_sigma(
         on, s = run(pull)
         assert on == pytest.approx(on0 - (pull if taken else 0.0), abs=1e-9), pull
         assert s == pytest.approx(math.hypot(s0, kept), rel=1e-9), pull
+
+
+def test_the_shape_term_is_the_cauchy_schwarz_bound_of_the_unexplained_share(monkeypatch):
+    """The envelope timing's shape term is ``sqrt(eps) / (2 pi beta_w)`` (in quadrature),
+    ``eps`` the unexplained share (``_unexplained``, stubbed here to a given value)."""
+    p = _probe(2000.0, 6000.0, 0.02)
+    x = _recording(p, [3000.3], [1.0], 1e-3, 0)
+    beta = _filter_of(p, x, 441).beta
+    monkeypatch.setattr(T, "_leakage", lambda *a, **k: 0.0)
+    sig = {}
+    for eps in (0.0, 1e-4, 0.04):
+        monkeypatch.setattr(T, "_unexplained", lambda *a, e=eps, **k: e)
+        sig[eps] = T.detect_template(x, fs=FS, probe=p, transducer_ripple_db=0.0).sigma[0]
+    for eps in (1e-4, 0.04):
+        want = math.hypot(sig[0.0], math.sqrt(eps) / (2.0 * math.pi * beta))
+        assert sig[eps] == pytest.approx(want, rel=1e-9), eps
