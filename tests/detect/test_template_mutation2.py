@@ -1261,3 +1261,21 @@ def test_the_shape_term_is_the_cauchy_schwarz_bound_of_the_unexplained_share(mon
     for eps in (1e-4, 0.04):
         want = math.hypot(sig[0.0], math.sqrt(eps) / (2.0 * math.pi * beta))
         assert sig[eps] == pytest.approx(want, rel=1e-9), eps
+
+
+def test_the_coherent_shape_term_uses_the_rms_frequency(monkeypatch):
+    """An in-phase 20 Hz-20 kHz arrival (weight 1): its shape term is ``sqrt(eps_odd) /
+    (2 pi F_w)`` (``_odd_eps`` stubbed to a given value), in quadrature; the envelope's
+    share (``_unexplained``) does not enter."""
+    p = _probe(20.0, 20000.0, 0.1)
+    x = _recording(p, [3000.0], [1.0], 1e-3, 0)
+    f_rms = _filter_of(p, x, 882).f_rms
+    monkeypatch.setattr(T, "_unexplained", lambda *a, **k: 0.5)
+    sig = {}
+    for eps in (0.0, 1e-4, 0.04):
+        monkeypatch.setattr(T, "_odd_eps", lambda *a, e=eps, **k: e)
+        sig[eps] = T.detect_template(x, fs=FS, probe=p, transducer_ripple_db=0.0).sigma[0]
+    assert sig[0.0] < 1e-4  # the envelope's 0.5 not counted: measured 3.9e-5
+    for eps in (1e-4, 0.04):
+        want = math.hypot(sig[0.0], math.sqrt(eps) / (2.0 * math.pi * f_rms))
+        assert sig[eps] == pytest.approx(want, rel=1e-9), eps
