@@ -1062,3 +1062,21 @@ def test_a_masked_place_holding_a_tenth_of_a_bursts_energy_is_tested(seed):
         got, flag = _masked_before(tone, lone, seed)
         assert got == pytest.approx(ratio, abs=0.002) and flag == 4, (tone, seed)
     assert _masked_before(0.15, 0.0, seed)[1] == 0
+
+
+@pytest.mark.parametrize("condition", [False, True])
+def test_a_short_recording_is_fitted_without_the_compiled_kernels(condition, monkeypatch):
+    """A recording shorter than ``NUMBA_MIN_SAMPLES`` is fitted on the numpy path, with
+    and without conditioning (``_Conditioner``'s ``compiled`` defaults to False): no
+    compiled edge kernel is called, and the beep is found (onset within 0.05 samples,
+    measured 0.01)."""
+
+    def refuse(name, *args):
+        raise AssertionError(f"compiled kernel {name} called")
+
+    monkeypatch.setattr(K, "call", refuse)
+    b, n = Beep(), 30000
+    x = _burst(n, 5000.3, 0.5, b) + 0.001 * np.random.default_rng(0).standard_normal(n)
+    arr = cp.detect_changepoint(x, fs=FS, beep=b, condition=condition)
+    assert len(arr) == 1 and abs(arr.onset[0] - 5000.3) < 0.05
+    assert cp._Conditioner(x, None, None).compiled is False
