@@ -794,6 +794,21 @@ def test_onset_flags_at_their_exact_ties_and_guards():
 
 # ---------------------------------------------------------------- the whole loop (_beeps_py)
 
+
+def _both(x, monkeypatch, **det):
+    """The numpy detector's arrivals, the compiled loop's (forced on a short recording),
+    and how many anchors the loop left to the reference (``changepoint._beep_row``)."""
+    monkeypatch.setattr(K, "NUMBA_MIN_SAMPLES", 10**12)
+    ref = cp.detect_changepoint(x, **det)
+    monkeypatch.setattr(K, "NUMBA_MIN_SAMPLES", 0)
+    left = []
+    real = cp._beep_row
+    monkeypatch.setattr(cp, "_beep_row", lambda *a, **k: left.append(1) or real(*a, **k))
+    fast = cp.detect_changepoint(x, **det)
+    monkeypatch.setattr(cp, "_beep_row", real)
+    return ref, fast, len(left)
+
+
 BEEP_CASES = [
     # (beep keywords, snr_db, noise, min_bursts, background, seed)
     (dict(), 3.0, "white", None, True, 0),  # low SNR: flags, missing bursts
@@ -822,10 +837,8 @@ def test_the_compiled_beep_loop_equals_the_numpy_detector(case, monkeypatch):
     n_found = 0
     for x in sim.recordings:
         det = dict(fs=beep.fs, beep=beep, min_bursts=min_bursts, background=background)
-        monkeypatch.setattr(K, "NUMBA_MIN_SAMPLES", 10**12)
-        ref = cp.detect_changepoint(x, **det)
-        monkeypatch.setattr(K, "NUMBA_MIN_SAMPLES", 0)
-        fast = cp.detect_changepoint(x, **det)
+        ref, fast, left = _both(x, monkeypatch, **det)
+        assert left == 0  # every anchor done by the compiled loop (measured 0)
         assert len(fast) == len(ref)
         np.testing.assert_allclose(fast.onset, ref.onset, rtol=0, atol=1e-6)
         np.testing.assert_allclose(fast.sigma, ref.sigma, rtol=1e-9)
@@ -856,10 +869,8 @@ def test_the_compiled_beep_loop_at_the_recordings_ends(cut, monkeypatch):
         seg = wave[: n - a]
         x[a : a + len(seg)] += 0.3 * seg
     x = x[int(rng.integers(0, 200)) :]  # the first beep near the very start
-    monkeypatch.setattr(K, "NUMBA_MIN_SAMPLES", 10**12)
-    ref = cp.detect_changepoint(x, fs=FS)
-    monkeypatch.setattr(K, "NUMBA_MIN_SAMPLES", 0)
-    fast = cp.detect_changepoint(x, fs=FS)
+    ref, fast, left = _both(x, monkeypatch, fs=FS)
+    assert left == 0  # measured 0
     assert len(fast) == len(ref) >= 1
     np.testing.assert_allclose(fast.onset, ref.onset, rtol=0, atol=1e-6)
     np.testing.assert_allclose(fast.sigma, ref.sigma, rtol=1e-9)
@@ -886,10 +897,8 @@ def test_the_compiled_beep_loop_with_a_burst_just_outside_its_search_window(
     for k in range(beep.n_bursts):
         a = at + k * beep.spacing + (shift if k == which else 0)
         x[a : a + len(one)] += 0.3 * one
-    monkeypatch.setattr(K, "NUMBA_MIN_SAMPLES", 10**12)
-    ref = cp.detect_changepoint(x, fs=FS, beep=beep)
-    monkeypatch.setattr(K, "NUMBA_MIN_SAMPLES", 0)
-    fast = cp.detect_changepoint(x, fs=FS, beep=beep)
+    ref, fast, left = _both(x, monkeypatch, fs=FS, beep=beep)
+    assert left == 0  # measured 0
     assert len(fast) == len(ref) == 1
     np.testing.assert_allclose(fast.onset, ref.onset, rtol=0, atol=1e-6)
     np.testing.assert_allclose(fast.sigma, ref.sigma, rtol=1e-9)
