@@ -1048,15 +1048,15 @@ def _bin_probe():
     return _probe(2000.0, 10000.0, 0.02, fs=FS48, band=(3000.0, 9000.0))
 
 
-def _coverage_of(boost_bins, j=5000, n=12000, seed=0):
-    """Coverage of an arrival at ``j``: the template with the bins of sub-band 3 (105-119)
-    removed and those of ``boost_bins`` 3x up, in white noise 1e-3."""
+def _coverage_of(boost_bins, j=5000, n=12000, seed=0, band=3):
+    """Coverage of an arrival at ``j``: the template with the bins of sub-band ``band``
+    (3: bins 105-119) removed and those of ``boost_bins`` 3x up, in white noise 1e-3."""
     p = _bin_probe()
     base = T._base(p, FS48, DEFAULT_BLOCK)
     h = base.template
     S = np.fft.rfft(h)
     S0 = S.copy()
-    S[105:120] = 0.0
+    S[60 + 15 * band : 75 + 15 * band] = 0.0
     for k in boost_bins:
         S[k] = 3.0 * S0[k]
     x = 1e-3 * np.random.default_rng(seed).standard_normal(n)
@@ -1296,3 +1296,20 @@ def test_a_first_path_within_1_5_of_its_threshold_is_ambiguous(g, rel, ambiguous
     assert len(a) == 1 and abs(a.onset[0] - 3000.3) < 2e-3  # measured 1e-3
     assert a.confidence[0] == pytest.approx(g, abs=2e-3)  # measured 4e-4
     assert bool(a.flags[0] & 4) is ambiguous
+
+
+@pytest.mark.parametrize("band", [0, 1, 6, 7])
+def test_coverage_tests_only_sub_bands_of_a_32nd_of_the_share(band):
+    """A sub-band is tested only when its expected share is at least ``1 / (4 N_SUBBANDS)``
+    (1/32): the 3-9 kHz band's outer sub-bands (shares 0.016 and 0.017) removed leave
+    coverage 1; sub-bands 1 and 6 (0.081 and 0.058, the latter under 1/16) removed, the
+    coverage is the tested share left over the tested share, to 1e-9."""
+    c, wf = _coverage_of([], band=band)
+    sh = wf.shares
+    tested = sh >= 1.0 / 32.0
+    assert list(np.flatnonzero(~tested)) == [0, 7]
+    if band in (0, 7):
+        assert c == 1.0
+    else:
+        assert c == pytest.approx(1.0 - sh[band] / sh[tested].sum(), abs=1e-9)
+        assert c < 1.0 - 0.5 * sh[band]  # measured 0.916 and 0.940
