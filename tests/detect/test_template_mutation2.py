@@ -1313,3 +1313,21 @@ def test_coverage_tests_only_sub_bands_of_a_32nd_of_the_share(band):
     else:
         assert c == pytest.approx(1.0 - sh[band] / sh[tested].sum(), abs=1e-9)
         assert c < 1.0 - 0.5 * sh[band]  # measured 0.916 and 0.940
+
+
+def test_the_plain_matched_filter_neither_masks_clipping_nor_weighs_noise():
+    """``weighting="none"``: no conditioning, so no clipped-sample mask (a clipped arrival
+    is not flagged ``clipped``) and no noise spectrum (strong 50 Hz hum is not flagged
+    ``dc_or_lowband``); the weighted filter flags both."""
+    p = _probe(2000.0, 6000.0, 0.02)
+    x = np.clip(_recording(p, [3000.3, 12000.6], [0.3, 3.0], 1e-3, 0), -1.0, 1.0)
+    plain = T.detect_template(x, fs=FS, probe=p, weighting="none")
+    ml = T.detect_template(x, fs=FS, probe=p)
+    assert len(plain) == 2 and [bool(f & 1) for f in plain.flags] == [False, False]
+    assert [bool(f & 1) for f in ml.flags] == [False, True]
+    y = _recording(p, [3000.3], [1.0], 1e-3, 0)
+    y += 0.3 * np.sin(2 * np.pi * 50.0 * np.arange(len(y)) / FS) * np.hanning(len(y))
+    plain = T.detect_template(y, fs=FS, probe=p, weighting="none")
+    ml = T.detect_template(y, fs=FS, probe=p)
+    assert plain.flags.tolist() == [0] and ml.flags.tolist() == [64]
+    assert abs(plain.onset[0] - 3000.3) < 2e-3  # measured 5e-4
