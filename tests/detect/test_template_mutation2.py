@@ -1293,7 +1293,7 @@ def test_a_first_path_within_1_5_of_its_threshold_is_ambiguous(g, rel, ambiguous
     p = _probe(2000.0, 6000.0, 0.02)
     x = _recording(p, [3000.3, 3000.3 + 0.004 * FS], [g, 1.0], 1e-3, 0)
     a = T.detect_template(x, fs=FS, probe=p, rel_threshold=rel)
-    assert len(a) == 1 and abs(a.onset[0] - 3000.3) < 2e-3  # measured 1e-3
+    assert len(a) == 1 and abs(a.onset[0] - 3000.3) < 2e-3  # measured <= 9e-4
     assert a.confidence[0] == pytest.approx(g, abs=2e-3)  # measured 4e-4
     assert bool(a.flags[0] & 4) is ambiguous
 
