@@ -1331,3 +1331,39 @@ def test_the_plain_matched_filter_neither_masks_clipping_nor_weighs_noise():
     ml = T.detect_template(y, fs=FS, probe=p)
     assert plain.flags.tolist() == [0] and ml.flags.tolist() == [64]
     assert abs(plain.onset[0] - 3000.3) < 2e-3  # measured 5e-4
+
+
+@pytest.mark.parametrize("cos_phase", [1.0, 0.7, 0.4])
+def test_the_coherent_and_envelope_timings_blend_by_the_weight(monkeypatch, cos_phase):
+    """A 20 Hz-20 kHz arrival whose coherent lag is stubbed ``d = 0.05`` samples after the
+    envelope's, at ``|cos phase|`` 1, 0.7 and 0.4 (weights 1, 0.546, 0): the onset moves by
+    ``w d``; the CRB and interpolation terms blend linearly, ``w s_coh + (1 - w) s_crb``
+    and ``w coherent_rms + (1 - w) interp_rms``; the disagreement beyond both timings' own
+    errors, ``sqrt(d^2 - s_crb^2 - interp_rms^2 - coherent_rms^2)``, enters in quadrature
+    (shape and pull stubbed to 0), and the transducer term is ``(1 - w) A / (2 pi beta) +
+    w A / (2 pi F)``. All to 1e-9."""
+    p = _probe(20.0, 20000.0, 0.1)
+    x = _recording(p, [3000.0], [1.0], 1e-3, 0)
+    wf = _filter_of(p, x, 882)
+    for name in ("_unexplained", "_odd_eps", "_leakage"):
+        monkeypatch.setattr(T, name, lambda *a, **k: 0.0)
+    monkeypatch.setattr(T, "coherent_lag", lambda c, lag, reach: None)
+    env = T.detect_template(x, fs=FS, probe=p, transducer_ripple_db=0.0)  # envelope only
+    d = 0.05
+    monkeypatch.setattr(T, "coherent_lag", lambda c, lag, reach: (lag + d, cos_phase))
+    a0 = T.detect_template(x, fs=FS, probe=p, transducer_ripple_db=0.0)
+    a6 = T.detect_template(x, fs=FS, probe=p)
+    w = min(1.0, max(0.0, (cos_phase - 0.5) / (math.cos(math.pi / 6.0) - 0.5)))
+    snr = 10.0 ** (env.snr_db[0] / 20.0)
+    s_env = 1.0 / (2.0 * math.pi * wf.beta * snr)
+    s_coh = 1.0 / (2.0 * math.pi * wf.f_rms * snr)
+    assert env.sigma[0] == pytest.approx(math.hypot(s_env, wf.interp_rms), rel=1e-9)
+    assert a0.onset[0] == pytest.approx(env.onset[0] + w * d, abs=1e-9)
+    s_def = math.sqrt(max(0.0, d**2 - s_env**2 - wf.interp_rms**2 - wf.coherent_rms**2))
+    assert s_def > 0.04  # measured 0.049
+    crb = w * s_coh + (1.0 - w) * s_env
+    interp = w * wf.coherent_rms + (1.0 - w) * wf.interp_rms
+    want = math.sqrt(crb**2 + interp**2 + (s_def if w > 0 else 0.0) ** 2)
+    assert a0.sigma[0] == pytest.approx(want, rel=1e-9)
+    s_td = (1.0 - w) * _ripple_6db(wf.beta) + w * _ripple_6db(wf.f_rms)
+    assert a6.sigma_transducer[0] == pytest.approx(s_td, rel=1e-9)
