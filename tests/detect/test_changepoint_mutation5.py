@@ -775,6 +775,11 @@ def test_resolve_aliases_keeps_the_strongest_selection_sharing_no_burst():
     assert [r[0] for r in cp._resolve_aliases(pair, tol=tol)] == [1000.0, 1000.0 + tol]
     pair = [_group(1000.0, 2.0), _group(1000.0 + 5000.0, 3.0)]
     assert [r[0] for r in cp._resolve_aliases(pair, tol=tol)] == [6000.0]
+    # bursts exactly tol apart are shared: three of them, aliases, the stronger stays
+    pair = [_group(1000.0, 2.0), _group(6000.0 + tol, 3.0)]
+    assert [r[0] for r in cp._resolve_aliases(pair, tol=tol)] == [6000.0 + tol]
+    pair = [_group(1000.0, 2.0), _group(6000.0 + tol + 0.5, 3.0)]
+    assert len(cp._resolve_aliases(pair, tol=tol)) == 2
     # a chain of 12 (13) linked groups one spacing apart, strengths 2, 3, 2, 2, 3, 2, ...:
     # searched whole (pair by pair); the two rules keep different groups there
     for size, whole in ((12, True), (13, False)):
