@@ -1367,3 +1367,28 @@ def test_the_coherent_and_envelope_timings_blend_by_the_weight(monkeypatch, cos_
     assert a0.sigma[0] == pytest.approx(want, rel=1e-9)
     s_td = (1.0 - w) * _ripple_6db(wf.beta) + w * _ripple_6db(wf.f_rms)
     assert a6.sigma_transducer[0] == pytest.approx(s_td, rel=1e-9)
+
+
+@pytest.mark.parametrize("side", ["after", "before"])
+def test_clipped_samples_count_within_the_fir_reach_of_the_arrival(side):
+    """A two-sample click at the rail (clipped, zeroed before filtering) counts for an
+    arrival when the FIR, ``reach`` samples either way, carries it into the arrival's
+    samples ``[j, j + len(template))``: one sample nearer than that boundary it is
+    ``clipped``, at the boundary it is not."""
+    p = _probe(2000.0, 6000.0, 0.02)
+    j = 8000
+    x0 = _recording(p, [float(j)], [0.3], 1e-3, 0)
+    a = T.detect_template(x0, fs=FS, probe=p)
+    assert int(round(a.onset[0])) == j
+    reach = _filter_of(p, x0, 441).reach
+    n = len(p.samples)
+    edge = j + n + reach if side == "after" else j - reach - 2  # first click start not counted
+    step = -1 if side == "after" else 1
+    got = []
+    for c in (edge + step, edge):
+        x = x0.copy()
+        x[c : c + 2] = 1.0
+        b = T.detect_template(x, fs=FS, probe=p)
+        assert len(b) == 1 and abs(b.onset[0] - j) < 1e-3  # measured 5e-4
+        got.append(bool(b.flags[0] & 1))
+    assert got == [True, False]
