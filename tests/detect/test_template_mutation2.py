@@ -838,20 +838,24 @@ def test_confidence_is_the_first_paths_height_over_the_strongest():
     assert a.confidence[0] == pytest.approx(0.5, abs=0.01)  # measured 0.4975
 
 
-def test_low_snr_at_either_side_of_twice_the_detection_threshold():
-    """``low_snr``: the first path's SNR below LOW_SNR_FACTOR (2) times ``k_rec = max(4.5,
-    sqrt(2 ln(n / FALSE_ALARM)))`` (n = 20000: 5.80, so 21.3 dB). Amplitudes set to put the
-    SNR 0.1 dB either side (the SNR scales with the amplitude in fixed noise)."""
+@pytest.mark.parametrize("k_detect", [4.5, 8.0])
+def test_low_snr_at_either_side_of_twice_the_detection_threshold(k_detect):
+    """``low_snr``: the first path's SNR below LOW_SNR_FACTOR (2) times ``k_rec = max(k_detect,
+    sqrt(2 ln(n / FALSE_ALARM)))`` (n = 20000: 5.80, so 21.3 dB; with ``k_detect`` 8, 24.1
+    dB). Amplitudes set to put the SNR 0.1 dB either side (the SNR scales with the
+    amplitude in fixed noise)."""
     p = _probe(2000.0, 6000.0, 0.02)
     n = 20000
-    thr_db = 20.0 * math.log10(2.0 * math.sqrt(2.0 * math.log(n / 1e-3)))
+    k_rec = max(k_detect, math.sqrt(2.0 * math.log(n / 1e-3)))
+    thr_db = 20.0 * math.log10(2.0 * k_rec)
     probe_amp = 1.5
-    a = T.detect_template(_recording(p, [3000.0], [probe_amp], 1.0, 3, n), fs=FS, probe=p)
+    kw = {"k_detect": k_detect}
+    a = T.detect_template(_recording(p, [3000.0], [probe_amp], 1.0, 3, n), fs=FS, probe=p, **kw)
     got = []
     for off in (-0.1, 0.1):
         amp = probe_amp * 10.0 ** ((thr_db + off - a.snr_db[0]) / 20.0)
-        b = T.detect_template(_recording(p, [3000.0], [amp], 1.0, 3, n), fs=FS, probe=p)
-        assert len(b) == 1 and abs(b.snr_db[0] - thr_db - off) < 0.05  # measured < 0.01
+        b = T.detect_template(_recording(p, [3000.0], [amp], 1.0, 3, n), fs=FS, probe=p, **kw)
+        assert len(b) == 1 and abs(b.snr_db[0] - thr_db - off) < 0.05  # measured <= 0.03
         got.append(bool(b.flags[0] & 2))
     assert got == [True, False]
 
