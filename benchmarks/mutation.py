@@ -201,6 +201,47 @@ TESTS: dict[str, tuple[str, ...]] = {
 #: plain score (which counts them as survivors).
 EQUIVALENT: dict[str, dict[tuple, str]] = {
     "rangekit/detect/changepoint.py": {
+        ('joint = np.where(count >= min_bursts, joint, 0.0)', '0.0 -> 1.0'):
+            '1 is far under f_joint (>= 12): the same local maxima above it',
+        ('f_joint = 0.8 * f_min * min_bursts', '* -> /', 0):
+            (
+                'the joint is 0 or >= min_bursts f_min: any f_joint in (0, min_bursts f_min] '
+                'picks the same edges'
+            ),
+        ('f_joint = 0.8 * f_min * min_bursts', '* -> /', 1):
+            (
+                'the joint is 0 or >= min_bursts f_min: any f_joint in (0, min_bursts f_min] '
+                'picks the same edges'
+            ),
+        ('margin = int(math.ceil(48 * fs / 44100.0 + beep.taper_s * fs)) + 8', '8 -> 9'):
+            (
+                'one more sample of filter context (78 > post + 4 already): the segment equals '
+                'the whole-recording cut (tested)'
+            ),
+        ('quiet = float(percentile(live, 10.0)) if len(live) else 0.0', '0.0 -> 1.0'):
+            'live is empty only with no frame at all: no arrival reads quiet',
+        ('if far > 0 and float(run.max()) > 10 ** (PRE_RISE_DB / 10) * far:', '> -> >=', 1):
+            'a float tie, never met',
+        ('tw = min(1500.0, 0.5 * lo, max(nyq - hi, 0.01 * nyq))', '0.01 -> 0.02'):
+            "the band's top leaves nyq - hi >= 0.02 nyq, so the max is the same",
+        (
+            'sg = np.clip(np.nan_to_num(raw_sg, nan=1e6, posinf=1e6), 1e-3, 1e6)',
+            '1000000.0 -> 2000000.0',
+            0,
+        ):
+            'the clip right after takes 2e6 back to 1e6',
+        (
+            'sg = np.clip(np.nan_to_num(raw_sg, nan=1e6, posinf=1e6), 1e-3, 1e6)',
+            '1000000.0 -> 2000000.0',
+            1,
+        ):
+            'the clip right after takes 2e6 back to 1e6',
+        ('if cond.taps is None or len(x) == 0:', '0 -> 1'):
+            'a one-sample recording has no arrival: its out-of-band verdict is never read',
+        ('if len(e) >= _edge_kernels.NUMBA_MIN_SAMPLES // hop:', '>= -> >'):
+            'at exactly that length the compiled and numpy paths give the same frames (tested)',
+        ('for a, b in zip(starts.tolist(), ends.tolist(), strict=True):', 'True -> False'):
+            'the two lists always have equal length',
         ("tw = min(1500.0, 0.5 * lo, max(nyq - hi, 0.01 * nyq))", "* -> /", 1):
             "hi <= 0.98 nyq, so nyq - hi >= 0.02 nyq exceeds 0.01 nyq and 0.01 / nyq: the max",
         ("compiled = len(x) >= _edge_kernels.NUMBA_MIN_SAMPLES", ">= -> >"):
@@ -269,6 +310,32 @@ EQUIVALENT: dict[str, dict[tuple, str]] = {
             "the same mask (float32 thresholds compare as float64 ones); only a copy saved",
     },
     "rangekit/detect/matched.py": {
+        ('if lo < 0 or hi > n:', '> -> >='):
+            'at hi == n the right pad is empty: the same piece',
+        ('keep = int(np.searchsorted(-e, -e[0] * 10.0 ** (-tail_db / 10.0)))', '0 -> 1'):
+            'every coded drive starts at sin(0) = 0, so the filtered y[0] is 0 and e[1] == e[0]',
+        ('n = max(1 << int(math.ceil(math.log2(n_in))), 4 * d)', '4 -> 5'):
+            (
+                'the second term is never taken: the shortest decimated FIR of 268 templates had '
+                '53-107 taps for d = 2-8 (> 5 d)'
+            ),
+        (
+            'if not 0.1 * noise * noise_scale <= sigma_fit <= 2.0 * noise * noise_scale:',
+            '<= -> <',
+            0,
+        ):
+            'a float tie of two noise levels, never met',
+        (
+            'if not 0.1 * noise * noise_scale <= sigma_fit <= 2.0 * noise * noise_scale:',
+            '<= -> <',
+            1,
+        ):
+            'a float tie of two noise levels, never met',
+        ('if i1 - i0 < 3 or not 0 <= int(round(first)) < len(env):', '<= -> <'):
+            (
+                'round(first) == 0 makes i1 = floor(first) - reach <= 0 < i0 + 3: the first test '
+                'returns already'
+            ),
         ("sp = np.asarray(spans, dtype=np.int64).reshape(-1, 2)", "1 -> 2"):
             "numpy (2.4) reads any negative size as the unknown one: reshape(-2, 2) is (-1, 2)",
         ("live = e > rel_zero * float(e.max()) if e.max() > 0 else np.zeros(len(e), bool)",
@@ -338,6 +405,11 @@ EQUIVALENT: dict[str, dict[tuple, str]] = {
             "the loop's two passes swap the two families' (disjoint) sets: the same sets pooled",
     },
     "rangekit/detect/_coherent.py": {
+        ('a = max(0, j - SINC_HALF - 2)', '2 -> 3'):
+            (
+                'one sample more before the taps read (floor(lag) - 15 .. + 16), which lie inside'
+                ' either way'
+            ),
         ("while b - a > 1e-4:", "> -> >="): "the interval, 2 g^k wide, is never exactly 1e-4",
         ("if f1 >= f2:", ">= -> >"):
             "at a tie the extremum lies between x1 and x2, which either branch keeps",
@@ -350,6 +422,8 @@ EQUIVALENT: dict[str, dict[tuple, str]] = {
          "3 -> 4"): "a sample no tap reads: [p - 1, p + 1] reads up to p + 17 < p + 19",
     },
     "rangekit/detect/pathfit.py": {
+        ('best = (-1.0, 0, thetas[0])', '1.0 -> 2.0'):
+            'the score p is never negative: it beats -1 and -2 alike',
         ("return _POCKET.r2c(buf, (0,), True, 0, None, 1)", "1 -> 2"):
             "pocketfft's thread count: one 1-d transform is done by one thread either way, "
             "bit-identical",
@@ -417,6 +491,13 @@ EQUIVALENT: dict[str, dict[tuple, str]] = {
             "statistic adds its zero row's 0 to the base energy",
     },
     "rangekit/detect/template.py": {
+        ('s_crb = 1.0 / (2.0 * math.pi * wf.beta * snr) if snr > 0 else math.inf', '> -> >='):
+            "snr is a chosen path's positive height over a positive floor (or inf): never 0",
+        ('if ambiguous_near or (strongest and pk.height < AMBIGUOUS_MARGIN * thr):', '< -> <='):
+            (
+                'a float tie at exactly AMBIGUOUS_MARGIN thr, never met (the rule is tested at '
+                '1.48 and 1.52)'
+            ),
         ("a = np.array([r[:5] for r in rows], dtype=np.float64)", "5 -> 6"):
             "a sixth column (the flag bits, as floats) that is never read: only a[:, :5] are",
         ("q < p and env[p] < TAIL_MARGIN * _tail_level(decay, p) for q, decay in decays",
