@@ -538,7 +538,30 @@ EQUIVALENT: dict[str, dict[tuple, str]] = {
             "the private _Base and _Filter are never assigned to (_Base's spectrum cache "
             "goes through object.__setattr__)",
     },
+    "rangekit/detect/_edge_kernels.py": {
+        ('n_in += 1', '1 -> 2'):
+            (
+                'every count doubles alike and is compared only with another count so made (top ='
+                ' n_in); n_ok is counted apart'
+            ),
+    },
     "rangekit/detect/_pathfit_kernels.py": {
+        ('while lam < 1e8:', '< -> <='):
+            (
+                'lam is 1e-3 times powers of 10 and of 1/3 (floored at 1e-9): never exactly 1e8 '
+                'in floats'
+            ),
+        ('if lam < 1e8:', '< -> <='):
+            (
+                'lam is 1e-3 times powers of 10 and of 1/3 (floored at 1e-9): never exactly 1e8 '
+                'in floats'
+            ),
+        ('e2 = np.empty((0, 0))', '0 -> 1', 0):
+            'returned only with ok False, when the caller reads none of the arrays',
+        ('e2 = np.empty((0, 0))', '0 -> 1', 1):
+            'returned only with ok False, when the caller reads none of the arrays',
+        ('first_s = 0', '0 -> 1'):
+            'always overwritten: order is a permutation of range(k) and first is in it',
         ("e1 = np.empty(0)", "0 -> 1"):
             "returned only with ok False, on which the caller runs the numpy reference and "
             "reads none of the arrays",
