@@ -104,6 +104,7 @@ TESTS: dict[str, tuple[str, ...]] = {
         "tests/detect/test_xcorr_mutation.py",
         "tests/detect/test_front.py",
         "tests/detect/test_changepoint.py",
+        "tests/detect/test_pooled_survivors.py",
     ),
     "rangekit/ranging/clock.py": (
         "tests/ranging/test_clock.py",
@@ -125,6 +126,7 @@ TESTS: dict[str, tuple[str, ...]] = {
     "rangekit/detect/stagger.py": (
         "tests/detect/test_stagger.py",
         "tests/detect/test_stagger_mutation.py",
+        "tests/detect/test_pooled_survivors.py",
     ),
     "rangekit/detect/pathfit.py": (
         "tests/detect/test_pathfit.py",
@@ -136,6 +138,7 @@ TESTS: dict[str, tuple[str, ...]] = {
         "tests/ranging/test_oneway_mutation.py",
         "tests/ranging/test_tof_mutation.py",
         "tests/detect/test_fitted_mutation.py",
+        "tests/detect/test_pooled_survivors.py",
     ),
     "rangekit/detect/_pathfit_kernels.py": (
         "tests/detect/test_pathfit_kernels.py",
