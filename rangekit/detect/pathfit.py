@@ -1190,8 +1190,10 @@ def pool_fits(fits, *, max_chi2: float = 4.0):
     ``fits`` are :class:`PathFit` (None entries are passed through) of one transducer
     pair and one model, e.g. one Tx and one receiver over many activation windows. Each
     contributes its own estimate ``theta_hat`` with information ``info``; the pooled value
-    is their information-weighted mean over the fits within 4 sigma of it (others, e.g. a
-    low-SNR fit stuck at a bound, are left out of the mean but conditioned on it). If the
+    is their information-weighted mean over the fits whose squared Mahalanobis distance
+    from it is at most ``8 p`` (``p`` parameters: 4 sigma for the resonator's two, about
+    5.7 for the stagger model's four; others, e.g. a low-SNR fit stuck at a bound, are
+    left out of the mean but conditioned on it), iterated up to 5 times. If the
     remaining spread exceeds ``max_chi2`` per degree of freedom, the arrivals did not go
     through one pair of transducers (or the model does not describe them well) and the
     fits are returned unchanged.
