@@ -45,7 +45,9 @@ room or transducer (theory and measurements: ``docs/theory/probes.md``):
    propagation onset for the phase-coherent timing; also in ``Arrivals.sigma_transducer``,
    which two-way ranging leaves out because it cancels there).
 7. **Flags** (:data:`rangekit.types.ARRIVAL_FLAGS`): ``clipped``, ``low_snr``,
-   ``ambiguous_first_path``, ``poor_match`` (sub-band coverage, :func:`_coverage`),
+   ``ambiguous_first_path`` (also where the recording starts at or after the peak of a
+   path above the first-path threshold: it cannot be searched), ``poor_match`` (sub-band
+   coverage, :func:`_coverage`),
    ``reverb_limited``, ``dc_or_lowband``.
 
 The onset of an arrival is the float sample index at which the probe's sample 0 arrived.
@@ -497,6 +499,13 @@ def detect_template(
         if ambiguous_near or (strongest and pk.height < AMBIGUOUS_MARGIN * thr):
             bits |= flag_bit("ambiguous_first_path")
         elif _near_miss(c, env, lo, [(j, lag - j), (js, a0 + pk.strongest_lag - js)], wf, thr):
+            bits |= flag_bit("ambiguous_first_path")
+        if a0 == 0 and env[0] > thr and env[0] >= env[1]:
+            # The recording starts at or after the peak of a path above the first-path
+            # threshold: that path (at its first sample, with no neighbour before it: not
+            # a local maximum) or one before it cannot be searched, and the lobe found may
+            # be a later one (a probe starting at sample 0 was timed 18.9 samples late at
+            # sigma 8.6 unflagged). A path peaking after sample 0 is searched as any other.
             bits |= flag_bit("ambiguous_first_path")
         if spectra is not None and _coverage(xc, j, base, wf, spectra) < POOR_MATCH_COVERAGE:
             bits |= flag_bit("poor_match")

@@ -262,3 +262,32 @@ def test_acceptance_48k_recording_of_a_44k_probe_ranges_as_accurately(name):
         assert med[fs] <= 0.01, (fs, e)
         assert np.percentile(e, 90) <= 0.03, (fs, e)
     assert abs(med[48000.0] - med[44100.0]) <= 0.002, med
+
+
+@pytest.mark.parametrize(
+    ("f0", "f1", "dur", "late"),
+    [(2000.0, 6000.0, 0.02, 18.9), (17000.0, 20000.0, 0.1, 22.2), (200.0, 13000.0, 0.2, 5.7)],
+)
+def test_a_probe_at_the_recordings_first_sample_is_flagged(f0, f1, dur, late):
+    """A probe whose first sample is the recording's is timed on a later lobe (its peak at
+    lag 0 has no neighbour before it: not a local maximum; measured ``late`` samples at
+    2.4-2.6 sigma) and must carry ``ambiguous_first_path``; the same probe 1000 samples in
+    is timed within 0.05 samples (measured <= 0.01) and unflagged."""
+    from rangekit.types import flag_bit
+
+    fs = 44100.0
+    p = linear_sweep(f0, f1, dur, fs=fs)
+    bit = flag_bit("ambiguous_first_path")
+    for lead in (0, 1000):
+        rng = np.random.default_rng(1)
+        x = np.concatenate([np.zeros(lead), p.samples, np.zeros(100)])
+        x = x + 0.01 * rng.standard_normal(len(x))
+        a = detect_template(x, fs=fs, probe=p)
+        assert len(a) == 1
+        if lead == 0:
+            assert 0.5 * late < a.onset[0] < 2.0 * late  # the failure this flag marks
+            assert a.onset[0] > 2.0 * a.sigma[0]
+            assert a.flags[0] & bit
+        else:
+            assert abs(a.onset[0] - lead) < 0.05
+            assert a.flags[0] == 0
