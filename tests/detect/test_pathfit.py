@@ -15,13 +15,13 @@ import math
 
 import numpy as np
 import pytest
+from pathfit_signals import fake_fit as _fake
 from pathfit_signals import received
 
 from rangekit.detect import pathfit as P
 from rangekit.detect.matched import MatchedFilter, coded_template, first_path
 from rangekit.detect.pathfit import (
     Q_LIMITS,
-    PathFit,
     ResonatorModel,
     _evaluate,
     fit_arrival,
@@ -198,28 +198,6 @@ def test_sigma_matches_the_scatter_of_noisy_fits(model):
     # (measured 0.050 / 0.050 in log Q, 55.3 / 53.2 Hz in f0).
     ratio = np.mean(theta_sd, axis=0) / np.std(theta, axis=0)
     assert np.all((0.75 < ratio) & (ratio < 1.25)), ratio
-
-
-def _fake(theta, info, onset=100.0, gain=(-10.0, 0.001), var=0.01) -> PathFit:
-    theta = np.asarray(theta, float)
-    return PathFit(
-        onset=onset,
-        sigma=1.0,
-        snr=30.0,
-        q=math.exp(theta[0]),
-        f0_hz=float(theta[1]),
-        onsets=np.array([onset]),
-        amplitudes=np.array([1.0]),
-        first=0,
-        misfit=0.0,
-        misfit_z=0.0,
-        resolution=20.0,
-        theta_lin=theta,
-        gain=np.asarray(gain, float),
-        var_given=var,
-        theta_hat=theta,
-        info=np.asarray(info, float),
-    )
 
 
 def test_pooling_conditions_each_onset_on_the_pooled_estimate():

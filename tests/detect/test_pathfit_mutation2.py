@@ -12,7 +12,7 @@ import math
 
 import numpy as np
 import pytest
-from pathfit_signals import received
+from pathfit_signals import fake_fit, received
 
 from rangekit.detect import pathfit as P
 from rangekit.signals.barker import CodedBurst
@@ -252,27 +252,7 @@ def test_the_first_path_lies_in_lo_minus_one_to_hi(model, two_paths):
 
 
 def _fake(theta, info, onset=100.0, gain=None) -> P.PathFit:
-    theta = np.asarray(theta, float)
-    p = len(theta)
-    return P.PathFit(
-        onset=onset,
-        sigma=0.1,
-        snr=30.0,
-        q=math.exp(theta[0]),
-        f0_hz=float(theta[1]),
-        onsets=np.array([onset]),
-        amplitudes=np.array([1.0]),
-        first=0,
-        misfit=0.0,
-        misfit_z=0.0,
-        resolution=20.0,
-        theta_lin=theta,
-        gain=np.linspace(-10.0, 1e-3, p) if gain is None else np.asarray(gain, float),
-        var_given=0.01,
-        theta_hat=theta,
-        info=np.asarray(info, float),
-        q_of=(lambda t: (math.exp(float(t[0])), float(t[1]))) if p != 2 else None,
-    )
+    return fake_fit(theta, info, onset=onset, sigma=0.1, gain=gain)
 
 
 def _pool_ref(fits, max_chi2=4.0):
