@@ -15,6 +15,7 @@ import math
 
 import numpy as np
 import pytest
+from detections import assert_same_detections
 
 import rangekit.detect._edge_kernels as K
 import rangekit.detect.changepoint as cp
@@ -143,21 +144,11 @@ def _detect_both(x, monkeypatch, **kw):
     return ref, fast
 
 
-def _assert_same(ref, fast):
-    assert len(ref) == len(fast) > 0
-    np.testing.assert_allclose(fast.onset, ref.onset, rtol=0, atol=1e-6)
-    np.testing.assert_allclose(fast.sigma, ref.sigma, rtol=1e-9)
-    np.testing.assert_allclose(fast.snr_db, ref.snr_db, rtol=0, atol=1e-9)
-    np.testing.assert_array_equal(fast.flags, ref.flags)
-    np.testing.assert_array_equal(fast.confidence, ref.confidence)
-    np.testing.assert_allclose(fast.burst_onsets, ref.burst_onsets, rtol=0, atol=1e-6)
-
-
 @pytest.mark.parametrize("seed", [0, 1, 2])
 def test_detections_equal_on_rendered_exchanges(seed, monkeypatch):
     sim = render_beepbeep(pair_devices(3.0, self_distance_m=0.1), snr_db=20, rng=seed)
     for x in sim.recordings:
-        _assert_same(*_detect_both(x, monkeypatch))
+        assert_same_detections(*_detect_both(x, monkeypatch))
 
 
 def test_detections_equal_on_a_long_tiled_recording(monkeypatch):
@@ -172,7 +163,7 @@ def test_detections_equal_on_a_long_tiled_recording(monkeypatch):
             x[s0 : s0 + len(one)] += one
     ref, fast = _detect_both(x, monkeypatch)
     assert len(ref) >= 10
-    _assert_same(ref, fast)
+    assert_same_detections(ref, fast)
 
 
 def test_detections_equal_on_a_clipped_recording(monkeypatch):
@@ -182,7 +173,7 @@ def test_detections_equal_on_a_clipped_recording(monkeypatch):
     x = impair(sim.recordings[0], fs=FS, impairments=Impairments(clip_db=15.0), rng=0).x
     ref, fast = _detect_both(x, monkeypatch)
     assert "clipped" in ref.flag_names(0)
-    _assert_same(ref, fast)
+    assert_same_detections(ref, fast)
 
 
 def test_detections_equal_in_a_pyroomacoustics_room(monkeypatch):
@@ -191,7 +182,7 @@ def test_detections_equal_in_a_pyroomacoustics_room(monkeypatch):
     rng = np.random.default_rng(11)
     ex = render_exchange(rng, room=draw_room(rng), distance_m=4.0)
     for x in ex.recordings:
-        _assert_same(*_detect_both(x, monkeypatch, expected=2))
+        assert_same_detections(*_detect_both(x, monkeypatch, expected=2))
 
 
 def test_short_recordings_take_the_numpy_path(monkeypatch):
@@ -240,12 +231,12 @@ def test_float32_input_on_the_compiled_path_equals_the_numpy_path(monkeypatch):
     x = _tiled(12.0).astype(np.float32)
     ref, fast = _detect_both(x, monkeypatch)
     assert len(ref) >= 6
-    _assert_same(ref, fast)
-    _assert_same(ref, cp.detect_changepoint(x.astype(np.float64), fs=FS))
+    assert_same_detections(ref, fast)
+    assert_same_detections(ref, cp.detect_changepoint(x.astype(np.float64), fs=FS))
 
 
 def test_unconditioned_detections_equal(monkeypatch):
-    _assert_same(*_detect_both(_tiled(9.0, seed=1), monkeypatch, condition=False))
+    assert_same_detections(*_detect_both(_tiled(9.0, seed=1), monkeypatch, condition=False))
 
 
 def test_an_anchor_left_to_the_reference_keeps_the_order(monkeypatch):
@@ -264,7 +255,7 @@ def test_an_anchor_left_to_the_reference_keeps_the_order(monkeypatch):
         return real(name, *args)
 
     monkeypatch.setattr(K, "call", call)
-    _assert_same(plain, cp.detect_changepoint(x, fs=FS))
+    assert_same_detections(plain, cp.detect_changepoint(x, fs=FS))
     assert handed == [0, 1]
 
 

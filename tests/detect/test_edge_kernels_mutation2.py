@@ -22,6 +22,7 @@ import math
 
 import numpy as np
 import pytest
+from detections import assert_same_detections
 from scipy.ndimage import maximum_filter1d
 
 import rangekit.detect._edge_kernels as K
@@ -839,13 +840,7 @@ def test_the_compiled_beep_loop_equals_the_numpy_detector(case, monkeypatch):
         det = dict(fs=beep.fs, beep=beep, min_bursts=min_bursts, background=background)
         ref, fast, left = _both(x, monkeypatch, **det)
         assert left == 0  # every anchor done by the compiled loop (measured 0)
-        assert len(fast) == len(ref)
-        np.testing.assert_allclose(fast.onset, ref.onset, rtol=0, atol=1e-6)
-        np.testing.assert_allclose(fast.sigma, ref.sigma, rtol=1e-9)
-        np.testing.assert_allclose(fast.snr_db, ref.snr_db, rtol=0, atol=1e-9)
-        np.testing.assert_array_equal(fast.flags, ref.flags)
-        np.testing.assert_array_equal(fast.confidence, ref.confidence)
-        np.testing.assert_allclose(fast.burst_onsets, ref.burst_onsets, rtol=0, atol=1e-6)
+        assert_same_detections(ref, fast, min_len=0)
         n_found += len(ref)
     assert n_found >= 2
 
@@ -871,12 +866,7 @@ def test_the_compiled_beep_loop_at_the_recordings_ends(cut, monkeypatch):
     x = x[int(rng.integers(0, 200)) :]  # the first beep near the very start
     ref, fast, left = _both(x, monkeypatch, fs=FS)
     assert left == 0  # measured 0
-    assert len(fast) == len(ref) >= 1
-    np.testing.assert_allclose(fast.onset, ref.onset, rtol=0, atol=1e-6)
-    np.testing.assert_allclose(fast.sigma, ref.sigma, rtol=1e-9)
-    np.testing.assert_array_equal(fast.flags, ref.flags)
-    np.testing.assert_array_equal(fast.confidence, ref.confidence)
-    np.testing.assert_allclose(fast.burst_onsets, ref.burst_onsets, rtol=0, atol=1e-6)
+    assert_same_detections(ref, fast)
 
 
 @pytest.mark.parametrize("shift", [-4, -3, 3, 4])
@@ -899,11 +889,8 @@ def test_the_compiled_beep_loop_with_a_burst_just_outside_its_search_window(
         x[a : a + len(one)] += 0.3 * one
     ref, fast, left = _both(x, monkeypatch, fs=FS, beep=beep)
     assert left == 0  # measured 0
-    assert len(fast) == len(ref) == 1
-    np.testing.assert_allclose(fast.onset, ref.onset, rtol=0, atol=1e-6)
-    np.testing.assert_allclose(fast.sigma, ref.sigma, rtol=1e-9)
-    np.testing.assert_array_equal(fast.flags, ref.flags)
-    np.testing.assert_allclose(fast.burst_onsets, ref.burst_onsets, rtol=0, atol=1e-6)
+    assert len(ref) == 1
+    assert_same_detections(ref, fast)
 
 
 @pytest.mark.parametrize("sigma", [0.5, 1.0, 2.0, 5.0])
