@@ -84,9 +84,11 @@ def make_archive(folder: Path, n_sessions: int, *, distinct: int = 20, seed: int
 
 #: Printed at exit by every timed process: its own CPU and its reaped workers' CPU; and
 #: by every forked worker at its exit ("@worker", its own CPU), through multiprocessing's
-#: after-fork hook and exit finalizers (workers leave by os._exit: no atexit).
+#: after-fork hook and exit finalizers (workers leave by os._exit: no atexit). A worker's
+#: line is one ``os.write`` (atomic on a pipe): two workers' ``print`` calls once
+#: interleaved into "@worker 1.0136451.02585".
 REPORT = (
-    "import atexit, resource, sys\n"
+    "import atexit, os, resource, sys\n"
     "import multiprocessing.util as mu\n"
     "def _cpu(who):\n"
     "    r = resource.getrusage(who)\n"
@@ -95,7 +97,7 @@ REPORT = (
     "    print('@cpu', _cpu(resource.RUSAGE_SELF), _cpu(resource.RUSAGE_CHILDREN), "
     "file=sys.stderr)\n"
     "def _worker_report():\n"
-    "    print('@worker', _cpu(resource.RUSAGE_SELF), file=sys.stderr, flush=True)\n"
+    "    os.write(2, f'@worker {_cpu(resource.RUSAGE_SELF)}\\n'.encode())\n"
     "class _Hook:\n"
     "    pass\n"
     "_hook = _Hook()\n"
