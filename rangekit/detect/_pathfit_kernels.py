@@ -164,7 +164,8 @@ def _lm_step_py(jp: np.ndarray, r: np.ndarray, p: int, lam: float, lim: np.ndarr
 
     Returns ``(gn, lam, step)``: ``gn = g^T (J^T J)^-1 g`` (the Gauss-Newton step's gain;
     nan where ``J^T J`` is singular), the damping the step was solved at (raised tenfold
-    while ``J^T J + lam diag`` is singular; ``>= 1e8``: no step) and the step, scaled as a
+    while ``J^T J + lam diag`` is singular, from 1e-9 where ``lam`` is 0; ``>= 1e8``: no
+    step) and the step, scaled as a
     whole so that no parameter moves more than ``lim``.
     """
     jtj, g = _normal_py(jp, r, p)
@@ -187,7 +188,8 @@ def _lm_step_py(jp: np.ndarray, r: np.ndarray, p: int, lam: float, lim: np.ndarr
         if _cholesky(a, p, lo):
             _chol_solve(lo, p, g, step)
             break
-        lam *= 10.0
+        # raised tenfold; from zero (an undamped request) to the fit's smallest damping
+        lam = lam * 10.0 if lam > 0.0 else 1e-9
     if lam < 1e8:
         scale = 1.0
         for i in range(p):

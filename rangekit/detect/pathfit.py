@@ -606,7 +606,8 @@ def _projected(st: _State) -> np.ndarray:
 def _lm_step_np(jp: np.ndarray, r: np.ndarray, p: int, lam: float, lim: np.ndarray):
     """One Levenberg-Marquardt proposal (the numpy reference of the compiled
     ``lm_step``): ``(g^T (J^T J)^-1 g`` or nan if singular, the damping the step was
-    solved at (``>= 1e8``: none), the step scaled so no parameter exceeds ``lim``)."""
+    solved at (raised tenfold, from 1e-9 where ``lam`` is 0; ``>= 1e8``: none), the step
+    scaled so no parameter exceeds ``lim``)."""
     jp = jp[:, :p]
     jtj = jp.T @ jp
     g = jp.T @ r
@@ -621,7 +622,7 @@ def _lm_step_np(jp: np.ndarray, r: np.ndarray, p: int, lam: float, lim: np.ndarr
         try:
             step = np.linalg.solve(jtj + lam * np.diag(d), g)
         except np.linalg.LinAlgError:
-            lam *= 10.0
+            lam = lam * 10.0 if lam > 0.0 else 1e-9  # from 0 (undamped): the smallest
             continue
         # One scale for the whole step keeps its direction (onset and Q are coupled).
         step = step * min(1.0, float(np.min(lim / np.maximum(np.abs(step), 1e-300))))

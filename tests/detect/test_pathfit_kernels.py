@@ -276,3 +276,34 @@ def test_a_held_stagger_fit_compiled_equals_the_numpy_reference(i, monkeypatch):
     a, b = _held_fits(monkeypatch, model, x, 200.0 + min(u0), sigma, th)
     assert a.info.shape == (4, 4)
     _assert_held_equal(a, b)
+
+
+@pytest.mark.parametrize("which", ["kernel", "numpy"])
+def test_lm_step_from_zero_damping_on_a_singular_system_returns(which):
+    """An undamped request (``lam = 0``) on a singular ``J^T J`` used to loop forever
+    (``0 * 10 = 0``); the damping now rises from 1e-9, the fit's smallest."""
+    import threading
+
+    rng = np.random.default_rng(11)
+    jp = rng.standard_normal((30, 3))
+    jp[:, 2] = 0.0
+    r = rng.standard_normal(30)
+    lim = np.full(3, 1e6)
+    step_fn = (
+        (lambda: K.call("lm_step", jp, r, 3, 0.0, lim))
+        if which == "kernel"
+        else (lambda: P._lm_step_np(jp, r, 3, 0.0, lim))
+    )
+    out: list = []
+    t = threading.Thread(target=lambda: out.append(step_fn()), daemon=True)
+    t.start()
+    t.join(timeout=60.0)  # measured: well under a second, compile included
+    assert out, "lm_step did not return from lam = 0 on a singular system"
+    gn, lam, step = out[0]
+    assert math.isnan(gn)  # J^T J singular: no Gauss-Newton gain
+    assert lam == 1e-9  # solved at the smallest damping, not raised further
+    # the damped step solves (J^T J + 1e-9 diag') step = g, diag' = 1 where J^T J's is 0
+    jtj, g = jp.T @ jp, jp.T @ r
+    d = np.where(np.diag(jtj) > 0, np.diag(jtj), 1.0)
+    np.testing.assert_allclose((jtj + lam * np.diag(d)) @ step, g, rtol=1e-9, atol=1e-9)
+    assert step[2] == 0.0  # nothing in g moves the dead column
