@@ -15,6 +15,9 @@ falls on each row alike:
   cores, which this shared machine does not have.
 * peer: decoding alone, ``soundfile`` reading the WAV in the series' blocks into float32
   in a fresh ``python -c`` (the limit of the issue's table).
+* numba's start-up: a process making one cached compiled call (``bench_detect_cli.
+  NUMBA_FLOOR``) less ``python -c "import numpy"``; with the in-process rate it gives the
+  ceilings the start-up leaves a 600 s recording.
 * in process (no start-up): ``list(range_series_beepbeep([WAV], self_distance_m=0.1))``
   today, and with the previous block reader (``series._BLOCK_DTYPE = "float64"``: float64
   decode, finiteness and peak checks of every block, a strided column per channel) -- the
@@ -44,7 +47,7 @@ import _one_core  # noqa: F401  (one thread, repo on sys.path; before numpy)
 import soundfile as sf
 from _report import goal_verdict, row
 from bench_batch import COMMAND, REPORT
-from bench_detect_cli import run_timed
+from bench_detect_cli import NUMBA_FLOOR, run_timed
 from bench_schemes import DIST_M, FS_AUDIO, TOL_BEEPBEEP_M, beepbeep_signal
 
 from rangekit.detect.changepoint import detect_changepoint
@@ -124,6 +127,8 @@ def main() -> int:
         cmds["decode alone (peer)"] = [
             sys.executable, "-c", DECODE_PEER.format(wav=wav, step=step)
         ]  # fmt: skip
+        cmds["numba start-up: one cached kernel call"] = [sys.executable, "-c", NUMBA_FLOOR]
+        cmds['python -c "import numpy"'] = [sys.executable, "-c", "import numpy"]
         inproc = {
             "range_series_beepbeep (today)": lambda: series_with("auto", wav),
             "same, previous block reader": lambda: series_with("float64", wav),
@@ -179,6 +184,14 @@ def main() -> int:
               f"worker's), CPU ratio {c2 / c1:.2f}")  # fmt: skip
         print(f"whole command start-up and decode: command CPU {c1:.2f} s - in-process "
               f"{ct:.2f} s = {c1 - ct:.2f} s")  # fmt: skip
+        numba = best["numba start-up: one cached kernel call"][1]
+        numba -= best['python -c "import numpy"'][1]
+        start = c1 - ct
+        print(f"of the start-up, numba's: {numba:.2f} s (a process making one cached "
+              f"compiled call, less 'import numpy'); on 600 s the start-up caps the command "
+              f"at {600 / (start + 600 * ct / dur):.0f}x, "
+              f"{600 / (max(start - numba, 0.0) + 600 * ct / dur):.0f}x "
+              f"without numba's start-up, {dur / ct:.0f}x with none")  # fmt: skip
         verdict = "met" if dur / c1 >= GOAL_X else "not met"  # on CPU time (load)
         print(f"goal: range --series >= {GOAL_X:.0f}x realtime (whole command): "
               f"{dur / w1:.0f}x wall, {dur / c1:.0f}x CPU ({verdict})")  # fmt: skip
