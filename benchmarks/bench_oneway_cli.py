@@ -22,6 +22,12 @@ before any detection). Check (untimed, first run): every window within 1 cm of t
 simulator's distance, in both commands. Goals (issue 20): >= 500x realtime and >= 15x the
 correlate peer.
 
+What is left of the goal: a process making one cached compiled call
+(``bench_detect_cli.NUMBA_FLOOR``, less ``python -c "import numpy"``) measures numba's
+start-up, and one ``python -X importtime`` run says whether ``--transducer-q 4`` imports
+numba; the fits' cost over ``--transducer-q 4`` is split into that start-up and their own
+work, with the ceilings left.
+
 BLAS/OpenMP pools are one thread in every child.
 
 Run: ``python benchmarks/bench_oneway_cli.py [--quick] [--repeats N]`` (``--quick``: 2
@@ -41,7 +47,7 @@ import _one_core  # noqa: F401  (one thread, repo on sys.path; before numpy)
 import numpy as np
 import soundfile as sf
 from _report import goal_verdict, row
-from bench_detect_cli import console_script
+from bench_detect_cli import NUMBA_FLOOR, console_script, imported
 from bench_detect_cli import run_timed as _run_timed
 from bench_schemes import FS_US, PERIOD_ONEWAY_S, TOL_US_M, oneway_signal
 
@@ -113,6 +119,8 @@ def main() -> int:
             "decode": [sys.executable, "-c",
                        f"import soundfile as sf; sf.read({wav!r}, dtype='float32')"],
             "corr": [sys.executable, "-c", CORR_PEER.format(wav=wav, h=h_path)],
+            "numba": [sys.executable, "-c", NUMBA_FLOOR],
+            "numpy": [sys.executable, "-c", "import numpy"],
         }  # fmt: skip
         for name in ("fit", "fixed", "decode"):  # warm-up (caches) and the output check
             run_timed(cmds[name])
@@ -125,6 +133,10 @@ def main() -> int:
                 if name == "corr" and args.quick and r > 0:
                     continue
                 times[name].append(run_timed(cmds[name]))
+        rk_mod = [sys.executable, "-m", "rangekit_cli.main"]
+        numba_fixed = any(
+            m.split(".")[0] == "numba" for m in imported([*rk_mod[1:], *cmds["fixed"][1:]])[0]
+        )
 
     def best(name: str) -> tuple[float, float]:
         return min(w for w, _ in times[name]), min(c for _, c in times[name])
@@ -134,6 +146,8 @@ def main() -> int:
         "fixed": "rangekit range --scheme oneway --transducer-q 4",
         "decode": "peer: decode only (soundfile, float32)",
         "corr": "peer: decode + scipy.signal.correlate fft",
+        "numba": "numba start-up: one cached kernel call",
+        "numpy": 'python -c "import numpy"',
     }
     print(f"\n  {'command':<50} {'best wall s':>11} {'x-realtime':>10} {'best CPU s':>10}")
     for name, label in labels.items():
@@ -156,6 +170,16 @@ def main() -> int:
             peer_value=DURATION_S / t_corr,
             note=f"3000 windows, best of {rounds} (wall {t:.2f} s, CPU {c:.2f} s); decoding "
             f"alone {DURATION_S / best('decode')[0]:.0f}x; {verdict}")  # fmt: skip
+    c_fit, c_fixed = best("fit")[1], best("fixed")[1]
+    c_numba = best("numba")[1] - best("numpy")[1]
+    fits = c_fit - c_fixed - (0.0 if numba_fixed else c_numba)
+    print(f"  what is left: the fits cost {c_fit - c_fixed:.2f} s CPU over --transducer-q 4, "
+          f"which {'imports numba too' if numba_fixed else 'imports no numba'}; numba's "
+          f"start-up {c_numba:.2f} s (a process making one cached compiled call, less "
+          f"'import numpy'){'' if numba_fixed else ' is part of that'}, the fits' own work "
+          f"{fits:.2f} s. Ceilings: without numba's start-up "
+          f"{DURATION_S / (c_fit - c_numba):.0f}x; with fits free as well, the detection "
+          f"{DURATION_S / c_fixed:.0f}x")  # fmt: skip
     row("oneway_cli", "rangekit range --scheme oneway (fit) vs decoding alone",
         DURATION_S / best("fit")[0], "x-realtime", peer="decode only (soundfile float32)",
         peer_value=DURATION_S / best("decode")[0], note="the decode limit")  # fmt: skip
