@@ -125,6 +125,8 @@ PRE_LAST_DB = 8.0
 #: 0.05 and 36-240 at 0.01-0.02, one 40 samples later 13 (median, 32 samples) at 0.02.
 PRE_TONE_S = (32 / 44100, 64 / 44100, 128 / 44100)
 PRE_TONE_RATIO = 4.0
+#: :func:`precursor_ratio` takes at most this many beeps at a time (memory, not numbers).
+PRE_CHUNK = 64
 #: A click (:func:`click_mask`): a run of clipped samples at most ``CLICK_MAX_S`` long
 #: with no other clipped sample within ``CLICK_GAP_S`` (8 and 32 samples at 44.1 kHz).
 CLICK_MAX_S = 8 / 44100
@@ -992,29 +994,43 @@ def _resolve_aliases(rows: list[tuple], *, tol: float) -> list[tuple]:
     n = len(rows)
     ons = [r[4][np.isfinite(r[4])] for r in rows]
     span = [(float(a.min()), float(a.max())) if len(a) else (math.inf, -math.inf) for a in ons]
-    shared = np.zeros((n, n), dtype=np.int64)
-    for i in range(n):
-        for j in range(i + 1, n):
-            # Groups whose burst onsets lie more than tol apart share none (skip the test).
-            if span[i][0] > span[j][1] + tol or span[j][0] > span[i][1] + tol:
+    # shared[(i, j)], i < j: bursts of group i within tol of one of group j's (pairs that
+    # share none are absent). Groups whose burst onsets lie more than tol apart share
+    # none, so only pairs overlapping in time are tested: a sweep over the groups in order
+    # of their first burst (was every pair and n x n matrices: quadratic in time and
+    # memory on an hour of beeps).
+    by_start = sorted(range(n), key=lambda i: span[i][0])
+    shared: dict[tuple[int, int], int] = {}
+    for u, i in enumerate(by_start):
+        for v in range(u + 1, n):
+            j = by_start[v]
+            if span[j][0] > span[i][1] + tol:
+                break  # the later groups start later still
+            if span[i][0] > span[j][1] + tol:
                 continue
-            a, b = ons[i], ons[j]
+            lo, hi = min(i, j), max(i, j)
+            a, b = ons[lo], ons[hi]
             k = int(np.sum(np.min(np.abs(a[:, None] - b[None, :]), axis=1) <= tol))
-            shared[i, j] = shared[j, i] = k
-    onset = np.array([r[0] for r in rows])
-    alias = (shared >= 2) & (np.abs(onset[:, None] - onset[None, :]) > tol)
+            if k:
+                shared[lo, hi] = k
+    onset = [float(r[0]) for r in rows]
+    alias = {ij for ij, k in shared.items() if k >= 2 and abs(onset[ij[0]] - onset[ij[1]]) > tol}
+    linked: list[list[int]] = [[] for _ in range(n)]
+    for i, j in alias:
+        linked[i].append(j)
+        linked[j].append(i)
     strength = [float(r[6]) for r in rows]
     keep = [True] * n
     seen = [False] * n
     for start in range(n):
-        if seen[start] or not alias[start].any():
+        if seen[start] or not linked[start]:
             continue
         comp, todo = [], [start]
         seen[start] = True
         while todo:
             i = todo.pop()
             comp.append(i)
-            for j in np.flatnonzero(alias[i]).tolist():
+            for j in sorted(linked[i]):
                 if not seen[j]:
                     seen[j] = True
                     todo.append(j)
@@ -1023,7 +1039,7 @@ def _resolve_aliases(rows: list[tuple], *, tol: float) -> list[tuple]:
             best, best_s = 0, -math.inf
             for m in range(1, 1 << len(comp)):
                 sel = [comp[t] for t in range(len(comp)) if m >> t & 1]
-                if any(shared[i, j] for i in sel for j in sel if i < j):
+                if any((i, j) in shared for i in sel for j in sel if i < j):
                     continue
                 tot = sum(strength[i] for i in sel)
                 if tot > best_s:
@@ -1033,7 +1049,7 @@ def _resolve_aliases(rows: list[tuple], *, tol: float) -> list[tuple]:
             continue
         for i in comp:  # pair by pair, in order
             for j in comp:
-                if i < j and keep[i] and keep[j] and alias[i, j]:
+                if i < j and keep[i] and keep[j] and (i, j) in alias:
                     keep[i if strength[i] < strength[j] else j] = False
     return [r for r, k in zip(rows, keep, strict=True) if k]
 
@@ -1267,11 +1283,13 @@ def _shift_flags(
     kw = {"fs": fs, "beep": beep, "background": bg, "compiled": cond.compiled}
     bit = flag_bit("ambiguous_first_path")
     flags = arr.flags.copy()
+    # every arrival's bursts in one sorted array with their arrival's index: the bursts
+    # of the others near a place are a slice (was one concatenation per arrival: O(n^2))
     bursts = [r[np.isfinite(r)] for r in arr.burst_onsets]
-    others = [
-        np.concatenate([b for j, b in enumerate(bursts) if j != i] or [np.zeros(0)])
-        for i in range(len(arr))
-    ]
+    all_b = np.concatenate(bursts)
+    owner = np.repeat(np.arange(len(arr)), [len(b) for b in bursts])
+    by_t = np.argsort(all_b, kind="stable")
+    all_b, owner = all_b[by_t], owner[by_t]
     for i in range(len(arr)):
         if flags[i] & bit:
             continue
@@ -1299,7 +1317,7 @@ def _shift_flags(
             p = int(round(place))
             if p - tol - sep < 0 or p + tol + sep >= len(cond.x):
                 continue
-            if len(others[i]) and float(np.min(np.abs(others[i] - place))) <= tol:
+            if _other_burst_near(all_b, owner, i, place, tol):
                 continue  # a burst of another arrival: explained (see above)
             f_x = _burst_stat(cond, p, -tol - sep, 2 * (tol + sep) + 1, **kw)[2]
             j = int(np.argmax(f_x))
@@ -1312,6 +1330,16 @@ def _shift_flags(
                 flags[i] |= bit
                 break
     return replace(arr, flags=flags)
+
+
+def _other_burst_near(all_b: np.ndarray, owner: np.ndarray, i: int, place: float, tol: int) -> bool:
+    """Whether a burst onset in ``all_b`` (sorted) of an arrival other than ``i``
+    (``owner``) lies within ``tol`` samples of ``place``: ``|b - place| <= tol``, tested
+    on the slice one sample wider either side (so rounding at the ends changes nothing)."""
+    lo = int(np.searchsorted(all_b, place - tol - 1.0, side="left"))
+    hi = int(np.searchsorted(all_b, place + tol + 1.0, side="right"))
+    near = all_b[lo:hi][owner[lo:hi] != i]
+    return bool(len(near)) and float(np.min(np.abs(near - place))) <= tol
 
 
 def precursor_ratio(
@@ -1365,6 +1393,13 @@ def precursor_ratio(
     True
     """
     on = np.atleast_2d(np.asarray(onsets, dtype=np.float64))
+    if len(on) > PRE_CHUNK:
+        # beeps in chunks: the level stretches of all beeps at once outgrow the caches
+        # (per beep 20 us for 400 beeps, 38 us for 2400); each row's numbers are its own
+        kw = {"fs": fs, "f_hz": f_hz, "lengths": lengths, "guard": guard, "clipped": clipped}
+        return np.concatenate(
+            [precursor_ratio(x, on[i : i + PRE_CHUNK], **kw) for i in range(0, len(on), PRE_CHUNK)]
+        )
     n_k = on.shape[1]
     far = int(round(PRE_NEAR_S * fs))
     n_lens = [int(v) - guard for v in lengths]
