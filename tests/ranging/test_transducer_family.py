@@ -3,7 +3,7 @@
 ``"resonator"`` (the default) is the resonant piezo of the papers: the model-choice
 variance of :mod:`rangekit.detect.fitted` weighs the two transducer models by Schwarz's
 criterion, and the numbers are what they were before the option existed (a recorded
-run, byte for byte). ``"unknown"`` weighs them by Akaike's: a non-resonator transducer's
+run, to round-off). ``"unknown"`` weighs them by Akaike's: a non-resonator transducer's
 model error is covered (coupled, Q 4, 10 dB: 81 % -> 91 % within 2 sigma, the
 receivers 10-12 mm late no longer at a sigma of 1-2 mm), and a resonator's sigma is
 wider. The option reaches the fit from ``range_oneway``, ``range_echo``, the setup
@@ -14,7 +14,6 @@ comments).
 
 from __future__ import annotations
 
-import hashlib
 import json
 from pathlib import Path
 
@@ -31,11 +30,67 @@ from rangekit.ranging.echo import range_echo
 from rangekit.ranging.oneway import range_oneway
 from rangekit.ranging.ultrasonic_setup import ultrasonic_setup
 
-#: sha256 of the (distance_m, sigma_m) float64 pairs of :func:`_small_run` at commit
-#: 2d4bfbd, before ``transducer_family`` existed. An intended change of the default fit
-#: changes it: re-record it then (``docs/accuracy.md``, "Transducer family").
 PLAN = Path(__file__).resolve().parents[2] / "fixtures_audio" / "corridor_plan.json"
-HEAD_SHA = "80e31a583ee2daab5912fd65fa5455d825d60e0727b75189d4c971540ef59860"
+#: The (distance_m, sigma_m) pairs of :func:`_small_run` at commit 2d4bfbd, before
+#: ``transducer_family`` existed, recorded on 2026-12-04 (the same bytes at 2d4bfbd,
+#: 3a61de4 and today's tree on that machine). They were a sha256 of the bytes, recorded on
+#: another machine; float round-off differs between CPUs (vector widths, fused
+#: multiply-adds in the compiled kernels), so the hash failed on an avx512 machine with the
+#: code unchanged: the values are compared to ``RTOL`` instead. An intended change of the
+#: default fit changes them: re-record them then (``docs/accuracy.md``, "Transducer
+#: family").
+RECORDED = np.array([
+    (3.143813592832204, 0.010366774589337721),
+    (3.4266786867251757, 0.004532443569541309),
+    (3.2298257672633626, 0.006543303713516606),
+    (3.141930940298739, 0.010376333837416698),
+    (3.4265287831292164, 0.004532839449814304),
+    (3.229112055010728, 0.006562497789196501),
+    (3.141919136325892, 0.010360815382109945),
+    (3.4285785326281557, 0.0045304756514540296),
+    (3.230192914377988, 0.006563302689822272),
+    (3.141632757471636, 0.010367836702179972),
+    (3.4259199508664104, 0.004587072753111244),
+    (3.22843601451603, 0.006554335830215669),
+    (3.1420306350722114, 0.0103673257417521),
+    (3.427454699657639, 0.004529483183890171),
+    (3.2264999111093706, 0.006549975652997518),
+    (0.9663380550675098, 0.007770669694417194),
+    (1.0490752353513004, 0.008087979541392953),
+    (0.7557501447288134, 0.0023266937067839178),
+    (0.9666660652852724, 0.007764512919950184),
+    (1.0455693436855014, 0.008067089911848216),
+    (0.7529192031358175, 0.0023755928675169066),
+    (0.9654155766471875, 0.0077446971671929045),
+    (1.0473354102600338, 0.00807329358107316),
+    (0.7535006694611572, 0.0023375125530674242),
+    (0.9673651460665253, 0.0078002499867477525),
+    (1.0456293230031972, 0.008071126042676695),
+    (0.7545515363078031, 0.002308448402002502),
+    (0.9656587115756659, 0.007761605878725523),
+    (1.0469190397241084, 0.008065910350451061),
+    (0.75356138772787, 0.0029133629118194464),
+    (2.781857621642324, 0.010938700692289064),
+    (2.8136168145190923, 0.007460957617481992),
+    (2.688156147334489, 0.0022091146213669647),
+    (2.781977264194945, 0.010932621828122614),
+    (2.8107869213376095, 0.007484382612477302),
+    (2.6882925144772196, 0.0021786232628512397),
+    (2.779723175854893, 0.010939095570582431),
+    (2.811671690469267, 0.007489291798569558),
+    (2.6880693617755704, 0.002235718471930294),
+    (2.7796147974045815, 0.010937350573813667),
+    (2.812645909121021, 0.007494988633391633),
+    (2.6879176356789, 0.00221544847032891),
+    (2.7780837788200494, 0.01093962790482205),
+    (2.8099612102172196, 0.007488512508510807),
+    (2.6876038703511904, 0.0021917996188139397),
+])  # fmt: skip
+#: Round-off across CPUs, not a model change. Measured proxy: the same run with the kernels
+#: interpreted (``NUMBA_DISABLE_JIT=1``: other operation order and no fused multiply-adds)
+#: differs by 7e-15 (distances) and 3e-13 (sigmas) relative; a change of the fit moves
+#: distances by micrometres (1e-6 relative) and sigmas by percent.
+RTOL = 1e-10
 
 
 def _small_run(**kw) -> np.ndarray:
@@ -46,7 +101,7 @@ def _small_run(**kw) -> np.ndarray:
 
 def test_the_default_is_byte_identical_to_before_the_option():
     got = _small_run()
-    assert hashlib.sha256(got.tobytes()).hexdigest() == HEAD_SHA, got[:, 1].tolist()
+    np.testing.assert_allclose(got, RECORDED, rtol=RTOL, atol=0)
     named = _small_run(transducer_family="resonator")
     assert named.tobytes() == got.tobytes()
 
