@@ -242,13 +242,13 @@ EQUIVALENT: dict[str, dict[tuple, str]] = {
             'the clip right after takes 2e6 back to 1e6',
         ('if cond.taps is None or len(x) == 0:', '0 -> 1'):
             'a one-sample recording has no arrival: its out-of-band verdict is never read',
-        ('if len(e) >= _edge_kernels.NUMBA_MIN_SAMPLES // hop:', '>= -> >'):
+        ("if len(e) >= _edge_kernels.NUMBA_MIN_SAMPLES // hop or long_recording():", ">= -> >"):
             'at exactly that length the compiled and numpy paths give the same frames (tested)',
         ('for a, b in zip(starts.tolist(), ends.tolist(), strict=True):', 'True -> False'):
             'the two lists always have equal length',
         ("tw = min(1500.0, 0.5 * lo, max(nyq - hi, 0.01 * nyq))", "* -> /", 1):
             "hi <= 0.98 nyq, so nyq - hi >= 0.02 nyq exceeds 0.01 nyq and 0.01 / nyq: the max",
-        ("compiled = len(x) >= _edge_kernels.NUMBA_MIN_SAMPLES", ">= -> >"):
+        ("compiled = len(x) >= _edge_kernels.NUMBA_MIN_SAMPLES or long_recording()", ">= -> >"):
             "which path at exactly NUMBA_MIN_SAMPLES: both give the same numbers (tested equal)",
         ("if lv is None or ref is None or not max(lv) >= MASK_RATIO * ref[0]:", ">= -> >"):
             "a tie of two mean band energies (floats) at exactly MASK_RATIO, never met",

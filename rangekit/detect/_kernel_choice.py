@@ -12,7 +12,7 @@ import contextvars
 import functools
 from collections.abc import Iterator
 
-from rangekit.detect._kernels import NUMBA_MIN_SAMPLES
+from rangekit.detect._kernels import NUMBA_MIN_SAMPLES, long_recording
 
 __all__ = ["KERNEL_MIN_SAMPLES", "compiled_step", "kernel_by_length"]
 
@@ -47,11 +47,12 @@ def compiled_step(on: bool) -> Iterator[None]:
 
 def kernel_by_length(fn):
     """Decorate a function of a recording ``x`` (its first argument): its fits run the
-    compiled step when ``len(x) >= KERNEL_MIN_SAMPLES`` (:func:`compiled_step`)."""
+    compiled step when ``len(x) >= KERNEL_MIN_SAMPLES`` or ``x`` is a block of a recording
+    that long (:func:`rangekit.detect._kernels.recording_samples`; :func:`compiled_step`)."""
 
     @functools.wraps(fn)
     def wrapper(x, *args, **kwargs):
-        with compiled_step(len(x) >= KERNEL_MIN_SAMPLES):
+        with compiled_step(len(x) >= KERNEL_MIN_SAMPLES or long_recording()):
             return fn(x, *args, **kwargs)
 
     return wrapper

@@ -23,14 +23,17 @@ The analysis window is the *periodic* (DFT-even) Hann window,
 
 from __future__ import annotations
 
+import contextlib
+import contextvars
 import functools
+from collections.abc import Iterator
 
 import numpy as np
 
 from rangekit import _validate
 from rangekit.errors import InvalidParameterError
 
-__all__ = ["band_energy"]
+__all__ = ["band_energy", "long_recording", "recording_samples"]
 
 # Only the flags that let LLVM reassociate the dot-product reductions (and fuse
 # multiply-adds).  Unlike ``fastmath=True`` this keeps ``nnan``/``ninf`` off, so a NaN or
@@ -96,6 +99,41 @@ def _band_energy_py(
 #: Inputs with fewer samples than this use the numpy reference (same numbers, tested):
 #: for a short file importing numba costs more (~0.25 s) than the whole computation.
 NUMBA_MIN_SAMPLES = 1_000_000
+
+#: Samples per channel of the recording that the detectors' input is a block of
+#: (:func:`recording_samples`); 0: the input is the whole recording.
+_RECORDING_SAMPLES: contextvars.ContextVar[int] = contextvars.ContextVar(
+    "recording_samples", default=0
+)
+
+
+@contextlib.contextmanager
+def recording_samples(n: int) -> Iterator[None]:
+    """Within the block, detection runs on blocks of a recording of ``n`` samples per
+    channel: the kernels are chosen by that length (:func:`long_recording`), not by the
+    block's, so every block of a long recording (its short last one too) takes the
+    compiled path, as the whole recording would.
+
+    Examples
+    --------
+    >>> with recording_samples(5_000_000):
+    ...     long_recording()
+    True
+    >>> long_recording()
+    False
+    """
+    token = _RECORDING_SAMPLES.set(int(n))
+    try:
+        yield
+    finally:
+        _RECORDING_SAMPLES.reset(token)
+
+
+def long_recording() -> bool:
+    """Whether the detectors' input is a block of a recording of ``NUMBA_MIN_SAMPLES`` or
+    more samples (:func:`recording_samples`): its kernels are the compiled ones whatever
+    the block's own length."""
+    return _RECORDING_SAMPLES.get() >= NUMBA_MIN_SAMPLES
 
 
 @functools.cache
@@ -259,7 +297,7 @@ def band_energy(x: np.ndarray, *, fs: float, f_hz: np.ndarray, n_win: int, hop: 
     if xa.shape[0] < n_win_v:
         return np.zeros(0, dtype=np.float64)
 
-    if xa.shape[0] < NUMBA_MIN_SAMPLES:
+    if xa.shape[0] < NUMBA_MIN_SAMPLES and not long_recording():
         return _band_energy_reference(xa, fs=fs_v, f_hz=f_arr, n_win=n_win_v, hop=hop_v)
     c = _complex_kernels(fs_v, f_arr, n_win_v)
     kr = np.ascontiguousarray(c.real)

@@ -41,7 +41,7 @@ from rangekit import _validate as V
 from rangekit.detect import _edge_kernels
 from rangekit.detect._edge_kernels import _better_line
 from rangekit.detect._edge_kernels import _drift_half_py as _drift_half
-from rangekit.detect._kernels import band_energy
+from rangekit.detect._kernels import band_energy, long_recording
 from rangekit.detect.condition import (
     active_floor,
     bandlimit,
@@ -189,7 +189,7 @@ def _change_points(
     # path followed by stronger reflections rises in two steps within a few ms.
     gap = int(math.ceil(n_win / hop)) + lookback
     nb = 8
-    if len(e) >= _edge_kernels.NUMBA_MIN_SAMPLES // hop:
+    if len(e) >= _edge_kernels.NUMBA_MIN_SAMPLES // hop or long_recording():
         return _edge_kernels.call(
             "change_points",
             np.ascontiguousarray(e, dtype=np.float64),
@@ -565,7 +565,7 @@ def find_bursts(
         x, fs=fs, beep=beep, win_s=win_s, hop_s=hop_s, threshold_db=threshold_db,
         rise_db=rise_db, condition=condition, clipped=clipped,
     )  # fmt: skip
-    compiled = len(x) >= _edge_kernels.NUMBA_MIN_SAMPLES
+    compiled = len(x) >= _edge_kernels.NUMBA_MIN_SAMPLES or long_recording()
     cond = _conditioner(
         x, fs=fs, beep=beep, condition=condition, compiled=compiled, clipped=clipped
     )
@@ -1168,7 +1168,7 @@ def detect_changepoint(
     spacing = beep.spacing_s * fs
     # Long recordings: numba is imported by band_energy already; the edge fits' kernels
     # (rangekit.detect._edge_kernels) give the numpy path's numbers to rounding.
-    compiled = len(x) >= _edge_kernels.NUMBA_MIN_SAMPLES
+    compiled = len(x) >= _edge_kernels.NUMBA_MIN_SAMPLES or long_recording()
     cs = np.concatenate(([0.0], np.cumsum(e)))
     if compiled:
         starts = (
@@ -1656,7 +1656,7 @@ def _signal(x) -> np.ndarray:
     if a.ndim != 1:
         raise V.InvalidParameterError(f"x must be 1-D, got shape {a.shape}")
     a = np.ascontiguousarray(a)
-    if len(a) >= _edge_kernels.NUMBA_MIN_SAMPLES:
+    if len(a) >= _edge_kernels.NUMBA_MIN_SAMPLES or long_recording():
         finite = _edge_kernels.call("all_finite", a)
     else:
         finite = bool(np.all(np.isfinite(a)))

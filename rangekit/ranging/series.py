@@ -57,6 +57,7 @@ import numpy as np
 
 from rangekit import _validate as V
 from rangekit.detect import DETECTORS, detect
+from rangekit.detect._kernels import recording_samples
 from rangekit.errors import (
     AudioFormatError,
     DetectionError,
@@ -570,9 +571,12 @@ def _detect_block(sources, plan: _BlockPlan, core0: int) -> tuple[list[Arrivals]
             if x.shape[1] == 0:
                 arrivals[dev] = Arrivals.empty(fs=s.fs, n_bursts=n_bursts)
                 continue
-            a = detect(
-                x[col], fs=s.fs, signal=plan.signal, method=plan.method, what=f"'{names[dev]}'"
-            )
+            # the kernels the whole recording would take, the short last block's too
+            with recording_samples(s.frames):
+                a = detect(
+                    x[col], fs=s.fs, signal=plan.signal, method=plan.method,
+                    what=f"'{names[dev]}'",
+                )  # fmt: skip
             a = a.take(np.argsort(a.onset, kind="stable"))
             arrivals[dev] = _shift(a, r0)
         del x
@@ -765,7 +769,8 @@ def _ultrasonic_series(
             r0 = max(0, int(win[0, 0]) - pre)
             r1 = min(n, int(win[-1, 1]) + post)
             x = read_frames(f, r0, r1)
-            tofs = func(x.T, fs=fs, burst=b, windows=win - r0, first_window=k0, **kw)
+            with recording_samples(n):  # the whole recording's kernels, every block
+                tofs = func(x.T, fs=fs, burst=b, windows=win - r0, first_window=k0, **kw)
             del x
             found = found or any(math.isfinite(r.distance_m) for r in tofs)
             # Sorted by (window, channel), one row per channel of every window.

@@ -124,6 +124,15 @@ def test_the_compiled_step_runs_by_the_recording_length_not_the_imports():
     probe(np.zeros(P.KERNEL_MIN_SAMPLES - 1))
     probe(np.zeros(P.KERNEL_MIN_SAMPLES))
     assert seen == [False, True]
+    # a short block of a long recording (a series' blocks): the recording's length rules
+    from rangekit.detect._kernels import recording_samples
+
+    with recording_samples(P.KERNEL_MIN_SAMPLES):
+        probe(np.zeros(16))
+    with recording_samples(P.KERNEL_MIN_SAMPLES - 1):
+        probe(np.zeros(16))
+    probe(np.zeros(16))
+    assert seen == [False, True, True, False, False]
 
 
 # The held fit as one compiled call (shift series instead of inverse FFTs) against the

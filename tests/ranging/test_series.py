@@ -95,6 +95,31 @@ def test_every_exchange_is_found_once_with_its_time_and_distance(exchange, serie
         assert 4.5e-3 < r.sigma_m < 18e-3
 
 
+def test_every_block_of_a_long_recording_takes_the_compiled_kernels(series_wav, monkeypatch):
+    """The 30 s file (1.32 M frames) is long enough for the compiled kernels; its 1.7 s
+    blocks (~0.2 M frames with their margins) are not, and took the numpy path until
+    2026-12-04 (the last block of a 10-minute file too: ~10 % of the series' CPU). The
+    detector now chooses by the recording's length (``recording_samples``): no block
+    reaches the numpy band energy, and the exchanges are the one-block ones."""
+    import rangekit.detect._kernels as K
+
+    ref = list(range_series_beepbeep([series_wav], self_distance_m=0.1, block_s=60.0))
+
+    def refused(*a, **k):
+        raise AssertionError("a block of a long recording took the numpy band energy")
+
+    monkeypatch.setattr(K, "_band_energy_reference", refused)
+    got = list(range_series_beepbeep([series_wav], self_distance_m=0.1, block_s=1.7))
+    assert len(got) == len(ref) == 12
+    for a, b in zip(got, ref, strict=True):
+        # measured (the blocks' own rounding, as with the numpy path before): t_s 3.6e-15
+        # s, distance 1.22e-12 m, sigma 4.0e-15 m
+        assert a.t_s == pytest.approx(b.t_s, abs=1e-14)
+        assert a.ranges[0].distance_m == pytest.approx(b.ranges[0].distance_m, abs=2.5e-12)
+        assert a.ranges[0].sigma_m == pytest.approx(b.ranges[0].sigma_m, abs=1e-14)
+    assert not K.long_recording()  # the hint does not outlive the series
+
+
 @pytest.mark.parametrize("block_s", [1.7, 2.65])
 def test_block_boundaries_do_not_change_the_series(series_wav, block_s):
     """Exchanges (first beep at 0.15 + 2.5 k s, last beep ends ~1 s later) that straddle
