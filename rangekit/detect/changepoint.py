@@ -47,6 +47,7 @@ from rangekit.detect.condition import (
     bandlimit,
     bandpass_taps,
     clip_mask,
+    live_frames,
     local_floor,
     out_of_band_ratio,
     percentile,
@@ -702,10 +703,33 @@ def click_mask(clipped: np.ndarray, *, fs: float) -> np.ndarray:
     return out
 
 
+def _floor_block(fs: float, hop: int) -> int:
+    """Frames per stretch of ``FLOOR_BLOCK_S`` (at least 16)."""
+    return max(16, int(round(FLOOR_BLOCK_S * fs / hop)))
+
+
 def _floor(e: np.ndarray, *, fs: float, hop: int) -> np.ndarray:
     """Per-frame noise level of the band energy: :func:`condition.local_floor` over
     stretches of ``FLOOR_BLOCK_S``."""
-    return local_floor(e, block=max(16, int(round(FLOOR_BLOCK_S * fs / hop))))
+    return local_floor(e, block=_floor_block(fs, hop))
+
+
+def _quiet_level(e: np.ndarray, floor: np.ndarray, *, fs: float, hop: int) -> float:
+    """The recording's quiet level: the 10th percentile of the per-frame floors of its
+    live stretches (:func:`condition.live_frames`), those under 1e-12 of the largest left
+    out, with stretches of digital silence left out of the floors' interpolation
+    (``local_floor(silent="skip")``). ``floor`` (``silent="whole"``, what the thresholds
+    use) gives silence the whole series' level, which raised the percentile twice, in the
+    silence and in its neighbours' interpolated floors: 0.2-1 s of zeros before a
+    recording dropped its arrivals' ``reverb_limited``. Without silence: ``floor``."""
+    block = _floor_block(fs, hop)
+    live = live_frames(e, block=block)
+    if live.any() and not live.all():
+        floor = local_floor(e, block=block, silent="skip")
+    sel = floor[live] if live.any() else floor
+    if len(sel) and sel.max() > 0:
+        sel = sel[sel > 1e-12 * float(sel.max())]
+    return float(percentile(sel, 10.0)) if len(sel) else 0.0
 
 
 def _conditioner(
@@ -1198,8 +1222,7 @@ def detect_changepoint(
     cond = _conditioner(
         x, fs=fs, beep=beep, condition=condition, compiled=compiled, clipped=clipped
     )
-    live = floor[floor > 1e-12 * float(floor.max())] if len(floor) and floor.max() > 0 else floor
-    quiet = float(percentile(live, 10.0)) if len(live) else 0.0
+    quiet = _quiet_level(e, floor, fs=fs, hop=hop)
     oob = _out_of_band(x, cond) if condition else False
     kw = {
         "fs": fs, "beep": beep, "n_win": n_win, "hop": hop, "background": background,

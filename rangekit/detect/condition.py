@@ -41,6 +41,7 @@ __all__ = [
     "bandpass_taps",
     "clip_mask",
     "dilate",
+    "live_frames",
     "local_floor",
     "out_of_band_ratio",
     "percentile",
@@ -372,13 +373,21 @@ def active_floor(
 
 
 def local_floor(
-    e: np.ndarray, *, block: int, q: float = 20.0, min_live: float = 0.25
+    e: np.ndarray,
+    *,
+    block: int,
+    q: float = 20.0,
+    min_live: float = 0.25,
+    silent: str = "whole",
 ) -> np.ndarray:
     """Per-frame noise level: :func:`active_floor` of blocks of ``block`` frames.
 
     Each block's level is assigned to its centre and linearly interpolated between
     centres; a block with fewer than ``min_live`` of its frames holding signal (mostly
-    digital silence) takes the level of the whole series.
+    digital silence; :func:`live_frames`) takes the level of the whole series
+    (``silent="whole"``), or is left out of the interpolation (``"skip"``: the live
+    blocks' levels, held flat beyond the first and the last; the whole series' level
+    where no block is live), so that its neighbours keep their own level.
 
     Examples
     --------
@@ -388,6 +397,8 @@ def local_floor(
     >>> bool(0.8 < f[500] < 1.2), bool(13 < f[7500] < 20)
     (True, True)
     """
+    if silent not in ("whole", "skip"):
+        raise V.InvalidParameterError(f"silent must be 'whole' or 'skip', got {silent!r}")
     e = np.asarray(e, dtype=np.float64)
     n = len(e)
     whole = active_floor(e, q=q)
@@ -399,6 +410,7 @@ def local_floor(
     lengths = np.minimum(n - np.arange(n_b) * block, block)
     centres = np.arange(n_b) * block + 0.5 * (lengths - 1)
     levels = np.full(n_b, whole)
+    own = np.zeros(n_b, dtype=bool)  # blocks with a level of their own
     # Whole blocks with every frame live (the usual case) in one call: the same
     # percentile along an axis as one block at a time, so the same numbers (tested).
     n_full = n // block
@@ -407,6 +419,7 @@ def local_floor(
     if block >= 8 and all_live.any():
         pct = percentile(full[all_live], q, axis=1)
         levels[:n_full][all_live] = pct / -math.log(1.0 - q / 100.0)
+        own[:n_full] = all_live
     for b in range(n_b):
         if b < n_full and all_live[b] and block >= 8:
             continue
@@ -414,7 +427,38 @@ def local_floor(
         live = seg[seg > 1e-12 * top]
         if len(live) >= max(8, min_live * len(seg)):
             levels[b] = float(percentile(live, q)) / -math.log(1.0 - q / 100.0)
+            own[b] = True
+    if silent == "skip" and own.any() and not own.all():
+        return np.interp(np.arange(n), centres[own], levels[own])
     return np.interp(np.arange(n), centres, levels)
+
+
+def live_frames(e: np.ndarray, *, block: int, min_live: float = 0.25) -> np.ndarray:
+    """Frames of ``e`` in the stretches :func:`local_floor` gives a level of their own.
+
+    A stretch of ``block`` frames is live when at least ``max(8, min_live * its
+    length)`` of its frames hold signal (over ``1e-12`` of the largest); the others
+    (mostly digital silence) take the whole series' level there, which is no level of
+    the recording's own. A series no longer than ``block`` is one stretch with the whole
+    series' level: every frame counts.
+
+    Examples
+    --------
+    >>> e = np.concatenate([np.zeros(3000), np.ones(5000)])
+    >>> m = live_frames(e, block=1000)
+    >>> int(m.sum()), bool(m[:3000].any())
+    (5000, False)
+    """
+    e = np.asarray(e, dtype=np.float64)
+    n = len(e)
+    block = V.positive_int("block", block)
+    if n <= block:
+        return np.ones(n, dtype=bool)
+    top = float(np.max(e))
+    starts = np.arange(0, n, block)
+    lengths = np.minimum(n - starts, block)
+    counts = np.add.reduceat((e > 1e-12 * top).astype(np.int64), starts)
+    return np.repeat(counts >= np.maximum(8, min_live * lengths), lengths)
 
 
 def out_of_band_ratio(x: np.ndarray, taps: np.ndarray, y: np.ndarray | None = None) -> float:
