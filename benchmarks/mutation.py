@@ -89,11 +89,13 @@ TESTS: dict[str, tuple[str, ...]] = {
         "tests/detect/test_changepoint_mutation4.py",
         "tests/detect/test_changepoint_mutation5.py",
         "tests/detect/test_changepoint_sweeps.py",
+        "tests/detect/test_quiet_level.py",
     ),
     "rangekit/detect/_kernels.py": ("tests/detect/test_kernels.py",),
     "rangekit/detect/condition.py": (
         "tests/detect/test_condition.py",
         "tests/detect/test_condition_mutation.py",
+        "tests/detect/test_quiet_level.py",
     ),
     "rangekit/detect/matched.py": (
         "tests/detect/test_matched_fast.py",
