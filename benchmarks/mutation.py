@@ -224,8 +224,8 @@ EQUIVALENT: dict[str, dict[tuple, str]] = {
                 'one more sample of filter context (78 > post + 4 already): the segment equals '
                 'the whole-recording cut (tested)'
             ),
-        ('quiet = float(percentile(live, 10.0)) if len(live) else 0.0', '0.0 -> 1.0'):
-            'live is empty only with no frame at all: no arrival reads quiet',
+        ("return float(percentile(sel, 10.0)) if len(sel) else 0.0", "0.0 -> 1.0"):
+            "sel is empty only with no frame at all: no arrival reads quiet",
         ('if far > 0 and float(run.max()) > 10 ** (PRE_RISE_DB / 10) * far:', '> -> >=', 1):
             'a float tie, never met',
         ('tw = min(1500.0, 0.5 * lo, max(nyq - hi, 0.01 * nyq))', '0.01 -> 0.02'):
