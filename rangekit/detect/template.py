@@ -163,6 +163,9 @@ SUBBAND_Z = 2.5
 #: ``poor_match``: the present sub-bands hold less than this share of the template's
 #: (weighted) energy (chosen by measurement, ``docs/theory/probes.md``).
 POOR_MATCH_COVERAGE = 0.5
+#: Envelope samples at or under this fraction of the largest are digital silence, left
+#: out of the recording's noise level (:func:`_not_silent`).
+SILENCE_REL = 1e-12
 #: ``reverb_limited``: the local floor before an arrival exceeds the recording's noise
 #: floor by this factor.
 REVERB_FACTOR = 2.0
@@ -393,7 +396,7 @@ def detect_template(
     xc = wf.condition(x)
     c = wf.mf.correlate(xc)
     env = np.abs(c)
-    noise = max(noise_level(env), NOISE_FLOOR_REL * float(env.max()))
+    noise = max(noise_level(_not_silent(env)), NOISE_FLOOR_REL * float(env.max()))
     # The noise envelope is Rayleigh: P(|c| > k noise) = exp(-k^2 / 2) per sample, so over
     # n samples a peak beyond sqrt(2 ln(n / FALSE_ALARM)) noise levels is a false alarm
     # with probability <= FALSE_ALARM (k_detect = 4.5 alone gives several per second).
@@ -641,6 +644,17 @@ def _cluster_start(
         return int(idx[0])
     k = int(big[-1]) + 1
     return int(idx[k]) if k < len(idx) else p
+
+
+def _not_silent(env: np.ndarray) -> np.ndarray:
+    """The envelope without its digital silence: the samples over ``SILENCE_REL`` of its
+    largest (exact zeros in the recording come out of the filter as rounding, ~1e-16);
+    all of it when nothing is left. The noise level is their median: a recording that is
+    more than half zeros (an app that starts silent) had a median of 0, a noise level at
+    ``NOISE_FLOOR_REL`` of the peak, and arrivals in the silence at 15-70 dB SNR (the
+    filter's -70 dB tails of the noise where it starts)."""
+    live = env[env > SILENCE_REL * float(env.max())] if len(env) else env
+    return live if len(live) else env
 
 
 def _local_floor(env: np.ndarray, start: int, look: int, half_lobe: int) -> float:
