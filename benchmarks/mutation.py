@@ -156,6 +156,7 @@ TESTS: dict[str, tuple[str, ...]] = {
         "tests/detect/test_template_wrong.py",
         "tests/detect/test_template_mutation.py",
         "tests/detect/test_template_mutation2.py",
+        "tests/detect/test_quiet_level.py",
     ),
     "rangekit/detect/_edge_kernels.py": (
         "tests/detect/test_edge_kernels.py",
