@@ -165,8 +165,7 @@ def _lm_step_py(jp: np.ndarray, r: np.ndarray, p: int, lam: float, lim: np.ndarr
     Returns ``(gn, lam, step)``: ``gn = g^T (J^T J)^-1 g`` (the Gauss-Newton step's gain;
     nan where ``J^T J`` is singular), the damping the step was solved at (raised tenfold
     while ``J^T J + lam diag`` is singular, from 1e-9 where ``lam`` is 0; ``>= 1e8``: no
-    step) and the step, scaled as a
-    whole so that no parameter moves more than ``lim``.
+    step) and the step, scaled as a whole so that no parameter moves more than ``lim``.
     """
     jtj, g = _normal_py(jp, r, p)
     d = np.empty(p)
