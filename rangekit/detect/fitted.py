@@ -440,7 +440,7 @@ def fit_channel(
             rel_threshold=rel_threshold, k_detect=k_detect, self_response=mf.self_response,
             env=env,
         )  # fmt: skip
-        if p is None:
+        if p is None or M._silent_input(x, a + int(round(p.lag)), mf.n_taps):
             continue
         sigma = M._sample_noise(x[s0 : max(s0, a + int(p.lag) - mf.n_taps)])
         if not 0.1 * noise * noise_scale <= sigma <= 2.0 * noise * noise_scale:
