@@ -102,6 +102,7 @@ TESTS: dict[str, tuple[str, ...]] = {
         "tests/detect/test_matched.py",
         "tests/detect/test_mutation_matched.py",
         "tests/detect/test_matched_mutation2.py",
+        "tests/ranging/test_ultrasonic_silence.py",
     ),
     "rangekit/detect/xcorr.py": (
         "tests/detect/test_xcorr_mutation.py",
@@ -142,6 +143,7 @@ TESTS: dict[str, tuple[str, ...]] = {
         "tests/ranging/test_tof_mutation.py",
         "tests/detect/test_fitted_mutation.py",
         "tests/detect/test_pooled_survivors.py",
+        "tests/ranging/test_ultrasonic_silence.py",
     ),
     "rangekit/detect/_pathfit_kernels.py": (
         "tests/detect/test_pathfit_kernels.py",
