@@ -132,3 +132,21 @@ def test_template_noise_level_leaves_digital_silence_out(silence_s):
     assert got.onset[0] - silence_s * fs == pytest.approx(ref.onset[0], abs=0.035)
     assert got.snr_db[0] == pytest.approx(ref.snr_db[0], abs=0.1)
     assert got.flag_names(0) == ref.flag_names(0) == ()
+
+
+def test_live_frames_counts_signal_as_local_floor_does_at_its_threshold():
+    """ "Holding signal" is over 1e-12 of the largest frame in both: a stretch whose 30 of
+    100 frames sit at 1.5e-12 of the peak is live (its own level in ``local_floor``), one
+    whose frames sit at 0.5e-12 is not (the whole series' level)."""
+    e = np.zeros(400)
+    e[:100] = 1.0  # the peak, and a live stretch
+    e[100:130] = 1.5e-12  # live: 30 % over the threshold
+    e[200:230] = 0.5e-12  # dead: under it
+    e[300:] = 1.0
+    live = live_frames(e, block=100)
+    assert live[100:200].all() and not live[200:300].any()
+    # local_floor agrees: the live stretch's own level (~1e-12), the dead one's the whole
+    # series' (4.48) near its centre (249.5)
+    f, whole = local_floor(e, block=100), cp.active_floor(e)
+    assert f[149] < 0.01 * whole  # measured 0.005 (the interpolation from 49.5)
+    assert f[249] > 0.9 * whole
