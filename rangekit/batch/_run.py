@@ -179,10 +179,8 @@ def _run_pool(jobs: int, chunks: list[list[Session]], options, record) -> None:
             for rows in f.result():
                 record(rows)
     except BaseException:
-        procs = list((getattr(ex, "_processes", None) or {}).values())
-        ex.shutdown(wait=False, cancel_futures=True)
-        # shutdown() sets _processes to None: take the workers before it
-        for p in procs:
-            p.terminate()
+        from rangekit._pool import stop_pool
+
+        stop_pool(ex)
         raise
     ex.shutdown(wait=True)

@@ -631,8 +631,12 @@ def _parallel_blocks(sources, paths, beep, probe, plan: _BlockPlan, cores, jobs:
             if nxt is not None:
                 pending.append(ex.submit(_worker_block, plan, nxt))
             yield block
-    finally:
-        ex.shutdown(wait=False, cancel_futures=True)
+    except BaseException:  # an error, Ctrl-C, or the consumer stopped (GeneratorExit)
+        from rangekit._pool import stop_pool
+
+        stop_pool(ex)
+        raise
+    ex.shutdown(wait=True)
 
 
 # --- ultrasonic --------------------------------------------------------------------------
