@@ -141,7 +141,8 @@ def range_ultrasonic_files(
     IncompatibleInputError
         A file's sample rate cannot carry the burst, or its channel count is wrong.
     DetectionError
-        A file holds no burst at all (no channel, no window).
+        A file holds no burst at all (no channel, no window; one-way), or every sample
+        of it is 0 (either scheme).
     """
     from rangekit.errors import DetectionError
     from rangekit.io.audio import read_audio
@@ -170,6 +171,12 @@ def range_ultrasonic_files(
         b = _file_burst(
             p, x.shape[1], fs, scheme=scheme, channels=channels, burst=burst, probe=probe
         )
+        if not (x[:4096].any() or x.any()):  # the first samples settle most files
+            # windows of zeros hold no arrival, and an echo log without one is not an
+            # error (nothing in range): a file of zeros would be a table of dashes
+            raise DetectionError(
+                f"'{p}': every sample is 0 (digital silence): nothing was recorded"
+            )
         res = func(x.T, fs=fs, burst=b, **kw)
         if calibration is not None:
             res = [_calibrated(r, calibration, c) for r in res]
