@@ -410,7 +410,7 @@ def local_floor(
     lengths = np.minimum(n - np.arange(n_b) * block, block)
     centres = np.arange(n_b) * block + 0.5 * (lengths - 1)
     levels = np.full(n_b, whole)
-    own = np.zeros(n_b, dtype=bool)  # blocks with a level of their own
+    own = _live_blocks(e, block=block, min_live=min_live, top=top)  # a level of their own
     # Whole blocks with every frame live (the usual case) in one call: the same
     # percentile along an axis as one block at a time, so the same numbers (tested).
     n_full = n // block
@@ -419,15 +419,11 @@ def local_floor(
     if block >= 8 and all_live.any():
         pct = percentile(full[all_live], q, axis=1)
         levels[:n_full][all_live] = pct / -math.log(1.0 - q / 100.0)
-        own[:n_full] = all_live
-    for b in range(n_b):
+    for b in np.flatnonzero(own).tolist():
         if b < n_full and all_live[b] and block >= 8:
             continue
         seg = e[b * block : min(n, (b + 1) * block)]
-        live = seg[seg > 1e-12 * top]
-        if len(live) >= max(8, min_live * len(seg)):
-            levels[b] = float(percentile(live, q)) / -math.log(1.0 - q / 100.0)
-            own[b] = True
+        levels[b] = float(percentile(seg[seg > 1e-12 * top], q)) / -math.log(1.0 - q / 100.0)
     if silent == "skip" and own.any() and not own.all():
         return np.interp(np.arange(n), centres[own], levels[own])
     return np.interp(np.arange(n), centres, levels)
@@ -454,11 +450,18 @@ def live_frames(e: np.ndarray, *, block: int, min_live: float = 0.25) -> np.ndar
     block = V.positive_int("block", block)
     if n <= block:
         return np.ones(n, dtype=bool)
-    top = float(np.max(e))
-    starts = np.arange(0, n, block)
-    lengths = np.minimum(n - starts, block)
+    live = _live_blocks(e, block=block, min_live=min_live, top=float(np.max(e)))
+    return np.repeat(live, np.minimum(n - np.arange(0, n, block), block))
+
+
+def _live_blocks(e: np.ndarray, *, block: int, min_live: float, top: float) -> np.ndarray:
+    """Per stretch of ``block`` frames of ``e`` (the last one shorter): whether at least
+    ``max(8, min_live * its length)`` of them lie over ``1e-12 * top`` (the one rule of
+    :func:`local_floor` and :func:`live_frames`)."""
+    starts = np.arange(0, len(e), block)
+    lengths = np.minimum(len(e) - starts, block)
     counts = np.add.reduceat((e > 1e-12 * top).astype(np.int64), starts)
-    return np.repeat(counts >= np.maximum(8, min_live * lengths), lengths)
+    return counts >= np.maximum(8, min_live * lengths)
 
 
 def out_of_band_ratio(x: np.ndarray, taps: np.ndarray, y: np.ndarray | None = None) -> float:
